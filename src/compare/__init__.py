@@ -1,0 +1,1 @@
+"""Comparison side of pgi: metrics, tables, convergence fits and the HTML report."""

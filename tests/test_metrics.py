@@ -1,0 +1,178 @@
+"""Unit tests for compare.metrics against hand-computed values."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from compare import metrics as m
+
+
+def const(h: int, w: int, v: float | tuple[float, float, float]) -> np.ndarray:
+    out = np.empty((h, w, 3))
+    out[...] = v
+    return out
+
+
+def test_constant_offset_values() -> None:
+    # r = 1, x = 1.5 everywhere: d = 0.5
+    r = const(8, 8, 1.0)
+    x = const(8, 8, 1.5)
+    got = m.compare_images(x, r)
+    assert got["mse"] == pytest.approx(0.25)
+    assert got["rmse"] == pytest.approx(0.5)
+    assert got["relmse"] == pytest.approx(0.25 / 1.01)
+    assert got["relmse_trimmed"] == pytest.approx(0.25 / 1.01)  # < 1000 pixels: no trim
+    assert got["mape"] == pytest.approx(0.5 / 1.01)
+    assert got["smape"] == pytest.approx(0.5 / 2.51)
+    # both tonemapped images are constant (1.0 after clipping): SSIM = 1
+    assert got["one_minus_ssim"] == pytest.approx(0.0, abs=1e-12)
+    assert 0.0 < got["flip"] <= 1.0
+
+
+def test_per_channel_values() -> None:
+    # one pixel row, channels differ: r = (0, 1, 2), x = (1, 1, 0)
+    r = const(4, 4, (0.0, 1.0, 2.0))
+    x = const(4, 4, (1.0, 1.0, 0.0))
+    got = m.compare_images(x, r)
+    assert got["mse"] == pytest.approx((1 + 0 + 4) / 3)
+    assert got["relmse"] == pytest.approx((1 / 0.01 + 0 + 4 / 4.01) / 3)
+    assert got["mape"] == pytest.approx((1 / 0.01 + 0 + 2 / 2.01) / 3)
+    assert got["smape"] == pytest.approx((1 / 1.01 + 0 + 2 / 2.01) / 3)
+
+
+def test_identical_images_zero_error() -> None:
+    rng = np.random.default_rng(1)
+    r = rng.random((16, 20, 3)) * 3
+    got = m.compare_images(r, r.copy())
+    for k in m.METRICS:
+        assert got[k] == pytest.approx(0.0, abs=1e-7), k
+
+
+def test_ssim_constant_images_closed_form() -> None:
+    # constant images a, b (in display space): SSIM = (2ab + C1) / (a^2 + b^2 + C1), C1 = 0.01^2
+    r = const(9, 9, 0.2)
+    x = const(9, 9, 0.05)
+    a = float(m.tonemap_srgb(np.array(0.05)))
+    b = float(m.tonemap_srgb(np.array(0.2)))
+    c1 = 0.01**2
+    expected = 1 - (2 * a * b + c1) / (a * a + b * b + c1)
+    assert m.compare_images(x, r)["one_minus_ssim"] == pytest.approx(expected, rel=1e-9)
+
+
+def test_trimmed_relmse_drops_top_pixels() -> None:
+    # 2000 pixels -> floor(0.001 * 2000) = 2 pixels trimmed
+    r = const(40, 50, 1.0)
+    x = r.copy()
+    x[0, 0] = 101.0  # two fireflies
+    x[5, 7] = 51.0
+    x[10, 10] = 2.0  # one moderate error, kept
+    got = m.compare_images(x, r)
+    assert got["relmse"] == pytest.approx((100**2 + 50**2 + 1) / 1.01 / 2000)
+    assert got["relmse_trimmed"] == pytest.approx(1 / 1.01 / 1998)
+
+
+def test_trimmed_mean_helper() -> None:
+    v = np.arange(3000, dtype=float)  # trims 3 largest: 2997, 2998, 2999
+    assert m.trimmed_mean(v) == pytest.approx(np.arange(2997).mean())
+    assert m.trimmed_mean(np.array([1.0, 5.0])) == pytest.approx(3.0)
+
+
+def test_flip_identical_zero_and_grows_with_noise() -> None:
+    rng = np.random.default_rng(2)
+    r = rng.random((32, 32, 3)) + 0.2
+    small = r * (1 + 0.05 * rng.standard_normal(r.shape))
+    big = r * (1 + 0.5 * rng.standard_normal(r.shape))
+    big = np.maximum(big, 0)
+    f0 = m.compare_images(r, r)["flip"]
+    f1 = m.compare_images(small, r)["flip"]
+    f2 = m.compare_images(big, r)["flip"]
+    assert f0 == pytest.approx(0.0, abs=1e-7)
+    assert 0 < f1 < f2 <= 1
+
+
+def test_flip_black_reference_does_not_exit() -> None:
+    # flip-evaluator would sys.exit on an all-black reference (empty exposure range)
+    got = m.compare_images(const(8, 8, 1.0), const(8, 8, 0.0))
+    assert 0 < got["flip"] <= 1
+    assert m.compare_images(const(8, 8, 0.0), const(8, 8, 0.0))["flip"] == 0.0
+
+
+def test_negative_values_accepted() -> None:
+    r = const(8, 8, 0.5)
+    x = r.copy()
+    x[0, 0] = -0.5
+    got = m.compare_images(x, r)
+    assert got["mse"] == pytest.approx(1.0 / 64)
+    assert math.isfinite(got["flip"])
+
+
+def test_grey_and_float32_inputs() -> None:
+    r = np.ones((8, 8), dtype=np.float32)
+    x = np.full((8, 8, 1), 2.0, dtype=np.float32)
+    assert m.compare_images(x, r)["mse"] == pytest.approx(1.0)
+
+
+def test_shape_mismatch_raises() -> None:
+    with pytest.raises(ValueError, match="shape mismatch.*test image is 5x4.*reference is 4x4"):
+        m.compare_images(np.zeros((4, 5, 3)), np.zeros((4, 4, 3)))
+    with pytest.raises(ValueError, match=r"expected an \(H, W, 3\) image"):
+        m.compare_images(np.zeros((4, 4, 2)), np.zeros((4, 4, 2)))
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_nonfinite_raises(bad: float) -> None:
+    r = const(4, 4, 1.0)
+    x = r.copy()
+    x[2, 3, 1] = bad
+    with pytest.raises(ValueError, match=r"test image has 1 pixel.*non-finite.*x=3, y=2"):
+        m.compare_images(x, r)
+    with pytest.raises(ValueError, match="reference image has 1 pixel"):
+        m.compare_images(r, x)
+
+
+def test_tiny_image_ssim_nan_but_others_fine() -> None:
+    got = m.compare_images(const(2, 2, 1.0), const(2, 2, 2.0))
+    assert math.isnan(got["one_minus_ssim"])
+    assert got["mse"] == pytest.approx(1.0)
+
+
+def test_maps() -> None:
+    r = const(3, 4, 1.0)
+    x = r.copy()
+    x[1, 2] = (2.0, 1.0, 1.0)
+    rm = m.relmse_map(x, r)
+    assert rm.shape == (3, 4)
+    assert rm[1, 2] == pytest.approx(1 / 1.01 / 3)
+    assert rm.sum() == pytest.approx(rm[1, 2])
+    assert m.abs_error_map(x, r)[1, 2] == pytest.approx(1 / 3)
+    fm, mean = m.flip_map(x, r)
+    assert fm.shape == (3, 4) and mean == pytest.approx(fm.mean(), rel=1e-5)
+
+
+def test_reference_error_factor() -> None:
+    # halves differ by +-d around truth t: A = t + d, B = t - d -> R = t exactly,
+    # (A-B)^2 = 4 d^2; estimate of ref MSE = 4 d^2 / 4 = d^2 (the error of one half is d^2;
+    # in expectation the average's error is half of one half's error).
+    t = const(4, 4, 1.0)
+    d = 0.1
+    got = m.reference_error(t + d, t - d)
+    assert got["halves_mse"] == pytest.approx(4 * d * d)
+    assert got["ref_mse"] == pytest.approx(d * d)
+    assert got["halves_relmse"] == pytest.approx(4 * d * d / 1.01)
+    assert got["ref_relmse"] == pytest.approx(d * d / 1.01)
+
+
+def test_reference_error_statistics() -> None:
+    # Monte-Carlo check of the 1/4 factor: two independent halves with noise sigma each
+    rng = np.random.default_rng(3)
+    t = const(200, 200, 1.0)
+    s = 0.05
+    a = t + s * rng.standard_normal(t.shape)
+    b = t + s * rng.standard_normal(t.shape)
+    est = m.reference_error(a, b)["ref_mse"]
+    true = float(((0.5 * (a + b) - t) ** 2).mean())
+    assert est == pytest.approx(true, rel=0.03)
+    assert est == pytest.approx(s * s / 2, rel=0.03)
