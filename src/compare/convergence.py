@@ -1,0 +1,77 @@
+"""Convergence analysis: log-log slope of error vs time, and time needed to reach an error.
+
+For an unbiased estimator MSE ~ t^-1 (slope -1 on a log-log plot); a consistent progressive
+estimator with a d-dimensional kernel reaches at best t^(-4/(d+4)) (Knaus & Zwicker 2011).
+The fitted slope is reported next to each curve.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class SlopeFit:
+    slope: float  # d log(error) / d log(time)
+    intercept: float  # log10(error) at t = 1 s
+    r2: float
+    n: int
+
+    def predict(self, t: float) -> float:
+        return 10.0 ** (self.intercept + self.slope * math.log10(t))
+
+
+def fit_slope(times: Sequence[float], errors: Sequence[float]) -> SlopeFit:
+    """Least-squares line through (log10 t, log10 error); non-positive points are ignored."""
+    t = np.asarray(times, dtype=np.float64)
+    e = np.asarray(errors, dtype=np.float64)
+    ok = (t > 0) & (e > 0) & np.isfinite(t) & np.isfinite(e)
+    x, y = np.log10(t[ok]), np.log10(e[ok])
+    n = int(ok.sum())
+    if n < 2 or np.ptp(x) == 0:
+        return SlopeFit(math.nan, math.nan, math.nan, n)
+    slope, intercept = np.polyfit(x, y, 1)
+    resid = y - (slope * x + intercept)
+    ss_tot = float(((y - y.mean()) ** 2).sum())
+    r2 = 1.0 - float((resid**2).sum()) / ss_tot if ss_tot > 0 else 1.0
+    return SlopeFit(float(slope), float(intercept), r2, n)
+
+
+def time_to_error(
+    times: Sequence[float], errors: Sequence[float], target: float, extrapolate: bool = True
+) -> tuple[float, bool]:
+    """Time at which a (mean) error curve reaches ``target``.
+
+    Interpolates linearly in log-log space between the first pair of consecutive points that
+    brackets the target. If the curve never gets that low (or starts below it), the fitted
+    power law is used when ``extrapolate`` and the slope is negative. Returns
+    ``(time, extrapolated)``; ``(nan, True)`` when no estimate is possible.
+    """
+    t = np.asarray(times, dtype=np.float64)
+    e = np.asarray(errors, dtype=np.float64)
+    order = np.argsort(t)
+    t, e = t[order], e[order]
+    ok = (t > 0) & (e > 0) & np.isfinite(e)
+    t, e = t[ok], e[ok]
+    if t.size == 0 or not target > 0:
+        return math.nan, True
+    lt, le, lg = np.log10(t), np.log10(e), math.log10(target)
+    for i in range(t.size - 1):
+        a, b = le[i], le[i + 1]
+        if (a - lg) * (b - lg) <= 0 and a != b:
+            f = (a - lg) / (a - b)
+            return float(10 ** (lt[i] + f * (lt[i + 1] - lt[i]))), False
+        if a == b == lg:
+            return float(t[i]), False
+    if t.size == 1 and e[0] == target:
+        return float(t[0]), False
+    if not extrapolate:
+        return math.nan, True
+    fit = fit_slope(t, e)
+    if not fit.slope < 0:
+        return math.nan, True
+    return float(10 ** ((lg - fit.intercept) / fit.slope)), True

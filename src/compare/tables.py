@@ -1,0 +1,338 @@
+"""Aggregate per-run metrics into tables: CSV for machines, HTML and Markdown for people.
+
+Tables (all written by :func:`write_tables` into one folder):
+
+- ``runs.csv``           one row per scene x method x seed x budget: metrics, sidecar stats,
+                         the reference's own error and the ``ref_ok`` quality flag
+- ``summary.csv``        mean, std, min, max over seeds per scene x method x budget
+- ``overview.{md,html}`` primary metric, scene x method rows, one column per budget,
+                         mean +- std over seeds, best method per scene and budget marked,
+                         cells whose reference is not good enough flagged
+- ``convergence.csv``    fitted log-log slope of error vs render time per scene x method x metric
+- ``time_to_error.csv``  time each method needs to reach a target error, and its speed-up vs the
+                         baseline method (target: the baseline's mean error at its largest
+                         budget, else the median final error of all methods)
+- ``stats.csv``          render statistics per run (iterations, rays, load time, memory, wall time)
+"""
+
+from __future__ import annotations
+
+import html
+import math
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .convergence import fit_slope, time_to_error
+from .metrics import METRICS
+
+KEYS = ["scene", "method", "budget"]
+
+METRIC_LABELS: dict[str, str] = {
+    "mse": "MSE",
+    "rmse": "RMSE",
+    "relmse": "relMSE",
+    "relmse_trimmed": "relMSE (trimmed 0.1%)",
+    "mape": "MAPE",
+    "smape": "SMAPE",
+    "flip": "HDR-FLIP",
+    "one_minus_ssim": "1 - SSIM",
+}
+
+
+def budget_label(b: float) -> str:
+    return f"{b:g} s"
+
+
+def load_runs(metric_csvs: Iterable[str | Path], benchmarks: dict | None = None) -> pd.DataFrame:
+    """Concatenate per-run metric CSVs; join benchmark TSVs keyed by (scene, method, seed)."""
+    frames = [pd.read_csv(p) for p in metric_csvs]
+    if not frames:
+        raise ValueError("no metrics to aggregate")
+    df = pd.concat(frames, ignore_index=True)
+    df["wall_seconds"] = math.nan
+    df["max_rss_mb"] = math.nan
+    for (scene, method, seed), tsv in (benchmarks or {}).items():
+        try:
+            b = pd.read_csv(tsv, sep="\t")
+        except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError):
+            continue
+        if b.empty:
+            continue
+        sel = (df.scene == scene) & (df.method == method) & (df.seed == int(seed))
+        df.loc[sel, "wall_seconds"] = pd.to_numeric(b["s"], errors="coerce").iloc[-1]
+        if "max_rss" in b:
+            df.loc[sel, "max_rss_mb"] = pd.to_numeric(b["max_rss"], errors="coerce").iloc[-1]
+    df["ref_ok"] = df["ref_ok"].astype(bool)
+    return df.sort_values(["scene", "method", "seed", "budget"]).reset_index(drop=True)
+
+
+def summarize(runs: pd.DataFrame) -> pd.DataFrame:
+    """Mean/std/min/max over seeds of every metric (flat columns ``<metric>_<stat>``)."""
+    metrics = [m for m in METRICS if m in runs]
+    g = runs.groupby(KEYS, sort=True)
+    agg = g[metrics + ["render_seconds"]].agg(["mean", "std", "min", "max"])
+    agg.columns = [f"{a}_{b}" for a, b in agg.columns]
+    agg["n_seeds"] = g["seed"].nunique()
+    agg["ref_relmse"] = g["ref_relmse"].first()
+    agg["ref_ok"] = g["ref_ok"].all()
+    return agg.reset_index()
+
+
+def best_methods(summary: pd.DataFrame, metric: str) -> pd.DataFrame:
+    """The method with the lowest mean ``metric`` per scene and budget."""
+    col = f"{metric}_mean"
+    valid = summary.dropna(subset=[col])
+    idx = valid.groupby(["scene", "budget"])[col].idxmin()
+    return valid.loc[idx, ["scene", "budget", "method", col]].reset_index(drop=True)
+
+
+def convergence_table(runs: pd.DataFrame, metrics: Sequence[str] = METRICS) -> pd.DataFrame:
+    rows = []
+    for (scene, method), d in runs.groupby(["scene", "method"], sort=True):
+        for m in metrics:
+            if m not in d:
+                continue
+            t = d["render_seconds"].where(d["render_seconds"] > 0, d["budget"])
+            f = fit_slope(t.to_numpy(), d[m].to_numpy())
+            rows.append(
+                {
+                    "scene": scene,
+                    "method": method,
+                    "metric": m,
+                    "slope": f.slope,
+                    "intercept_log10": f.intercept,
+                    "r2": f.r2,
+                    "points": f.n,
+                }
+            )
+    return pd.DataFrame(rows)
+
+
+def time_to_error_table(summary: pd.DataFrame, metric: str, baseline: str) -> pd.DataFrame:
+    col = f"{metric}_mean"
+    rows = []
+    for scene, d in summary.groupby("scene", sort=True):
+        base = d[d.method == baseline]
+        if not base.empty and np.isfinite(base[col]).any():
+            target = float(base.sort_values("budget")[col].dropna().iloc[-1])
+            target_from = f"{baseline} at {base.budget.max():g} s"
+        else:
+            finals = d.sort_values("budget").groupby("method")[col].last()
+            target = float(finals.median())
+            target_from = "median final error"
+        times: dict[str, tuple[float, bool]] = {}
+        for method, dm in d.groupby("method", sort=True):
+            t_col = dm["render_seconds_mean"].where(dm["render_seconds_mean"] > 0, dm["budget"])
+            times[method] = time_to_error(t_col.to_numpy(), dm[col].to_numpy(), target)
+        t_base = times.get(baseline, (math.nan, True))[0]
+        for method, (t, extrap) in times.items():
+            rows.append(
+                {
+                    "scene": scene,
+                    "method": method,
+                    "metric": metric,
+                    "target": target,
+                    "target_from": target_from,
+                    "seconds": t,
+                    "extrapolated": extrap,
+                    f"speedup_vs_{baseline}": t_base / t if t > 0 else math.nan,
+                }
+            )
+    return pd.DataFrame(rows)
+
+
+def stats_table(runs: pd.DataFrame) -> pd.DataFrame:
+    """Render statistics of each run at its largest budget."""
+    last = runs.sort_values("budget").groupby(["scene", "method", "seed"], sort=True).tail(1)
+    cols = [
+        "scene",
+        "method",
+        "seed",
+        "budget",
+        "render_seconds",
+        "load_seconds",
+        "iterations",
+        "spp",
+        "rays",
+        "nonfinite",
+        "threads",
+        "wall_seconds",
+        "max_rss_mb",
+    ]
+    out = last[[c for c in cols if c in last]].copy()
+    if "rays" in out:
+        out["mrays_per_s"] = out["rays"] / out["render_seconds"] / 1e6
+    return out.sort_values(["scene", "method", "seed"]).reset_index(drop=True)
+
+
+# --- formatting ---------------------------------------------------------------------------
+
+
+def fmt(x: float, digits: int = 3) -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "–"
+    x = float(x)
+    if x == 0:
+        return "0"
+    if 1e-3 <= abs(x) < 1e4:
+        return f"{x:.{digits}g}"
+    return f"{x:.{max(digits - 1, 1)}e}"
+
+
+def fmt_pm(mean: float, std: float) -> str:
+    if std is None or not math.isfinite(float(std)):
+        return fmt(mean)
+    return f"{fmt(mean)} ± {fmt(std, 2)}"
+
+
+def overview_cells(summary: pd.DataFrame, metric: str) -> list[dict]:
+    """One dict per scene x method: cells per budget with text, best and flag marks."""
+    best = best_methods(summary, metric)
+    best_set = {(r.scene, r.budget, r.method) for r in best.itertuples()}
+    out = []
+    for (scene, method), d in summary.groupby(["scene", "method"], sort=True):
+        cells = {}
+        for r in d.itertuples():
+            cells[r.budget] = {
+                "text": fmt_pm(getattr(r, f"{metric}_mean"), getattr(r, f"{metric}_std")),
+                "mean": getattr(r, f"{metric}_mean"),
+                "best": (scene, r.budget, method) in best_set,
+                "ref_ok": bool(r.ref_ok),
+            }
+        out.append({"scene": scene, "method": method, "cells": cells})
+    return out
+
+
+def overview_markdown(summary: pd.DataFrame, metric: str) -> str:
+    budgets = sorted(summary.budget.unique())
+    head = ["scene", "method", *[budget_label(b) for b in budgets]]
+    lines = [
+        f"{METRIC_LABELS.get(metric, metric)}, mean ± std over seeds; **bold** = best per "
+        "scene and budget; ⚠ = reference error not well below this error",
+        "",
+        "| " + " | ".join(head) + " |",
+        "|" + "|".join(["---"] * len(head)) + "|",
+    ]
+    for row in overview_cells(summary, metric):
+        cells = []
+        for b in budgets:
+            c = row["cells"].get(b)
+            if c is None:
+                cells.append("")
+                continue
+            t = f"**{c['text']}**" if c["best"] else c["text"]
+            cells.append(t if c["ref_ok"] else t + " ⚠")
+        lines.append("| " + " | ".join([row["scene"], row["method"], *cells]) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def overview_html(summary: pd.DataFrame, metric: str, link_scenes: bool = False) -> str:
+    """An HTML <table> (no page around it); classes ``best`` and ``refbad`` mark cells."""
+    budgets = sorted(summary.budget.unique())
+    e = html.escape
+    parts = [
+        '<table class="overview"><thead><tr><th>scene</th><th>method</th>',
+        *[f"<th>{e(budget_label(b))}</th>" for b in budgets],
+        "</tr></thead><tbody>",
+    ]
+    rows = overview_cells(summary, metric)
+    counts: dict[str, int] = {}
+    for r in rows:
+        counts[r["scene"]] = counts.get(r["scene"], 0) + 1
+    seen: set[str] = set()
+    for r in rows:
+        parts.append("<tr>")
+        if r["scene"] not in seen:
+            seen.add(r["scene"])
+            name = e(r["scene"])
+            label = f'<a href="scene-{name}.html">{name}</a>' if link_scenes else name
+            parts.append(f'<th class="scene" rowspan="{counts[r["scene"]]}">{label}</th>')
+        parts.append(f'<th class="method">{e(r["method"])}</th>')
+        for b in budgets:
+            c = r["cells"].get(b)
+            if c is None:
+                parts.append("<td></td>")
+                continue
+            cls = []
+            title = ""
+            if c["best"]:
+                cls.append("best")
+            if not c["ref_ok"]:
+                cls.append("refbad")
+                title = ' title="reference error is not well below this error"'
+            mark = ' <span class="flag">⚠</span>' if not c["ref_ok"] else ""
+            parts.append(f'<td class="{" ".join(cls)}"{title}>{e(c["text"])}{mark}</td>')
+        parts.append("</tr>")
+    parts.append("</tbody></table>")
+    return "".join(parts)
+
+
+def frame_html(df: pd.DataFrame, float_digits: int = 3) -> str:
+    """A plain HTML table of a DataFrame with compact number formatting."""
+    e = html.escape
+    parts = ['<table class="data"><thead><tr>']
+    parts += [f"<th>{e(str(c))}</th>" for c in df.columns]
+    parts.append("</tr></thead><tbody>")
+    for row in df.itertuples(index=False):
+        parts.append("<tr>")
+        for v in row:
+            if isinstance(v, bool | np.bool_):
+                s = "yes" if v else "no"
+            elif isinstance(v, float | np.floating):
+                s = fmt(float(v), float_digits)
+            else:
+                s = str(v)
+            parts.append(f"<td>{e(s)}</td>")
+        parts.append("</tr>")
+    parts.append("</tbody></table>")
+    return "".join(parts)
+
+
+def frame_markdown(df: pd.DataFrame) -> str:
+    head = [str(c) for c in df.columns]
+    lines = ["| " + " | ".join(head) + " |", "|" + "|".join(["---"] * len(head)) + "|"]
+    for row in df.itertuples(index=False):
+        vals = [fmt(float(v)) if isinstance(v, float | np.floating) else str(v) for v in row]
+        lines.append("| " + " | ".join(vals) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def write_tables(
+    runs: pd.DataFrame, out_dir: str | Path, *, metric: str = "relmse", baseline: str = "pt"
+) -> dict[str, pd.DataFrame]:
+    """Write every table into ``out_dir``; return them by name."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    summary = summarize(runs)
+    tables = {
+        "runs": runs,
+        "summary": summary,
+        "best": best_methods(summary, metric),
+        "convergence": convergence_table(runs),
+        "time_to_error": time_to_error_table(summary, metric, baseline),
+        "stats": stats_table(runs),
+    }
+    for name, df in tables.items():
+        df.to_csv(out / f"{name}.csv", index=False)
+    (out / "overview.md").write_text(overview_markdown(summary, metric))
+    style = (
+        "<style>body{font-family:sans-serif}td,th{padding:2px 8px;border-bottom:1px solid #ddd}"
+        ".best{font-weight:bold;background:#d8f5d0}.refbad{color:#a60}</style>"
+    )
+    (out / "overview.html").write_text(
+        f"<!doctype html><meta charset=utf-8><title>overview</title>{style}"
+        f"<p>{html.escape(METRIC_LABELS.get(metric, metric))}, mean ± std over seeds</p>"
+        + overview_html(summary, metric)
+        + "\n"
+    )
+    md = ["# Tables", ""]
+    for name in ("convergence", "time_to_error", "stats"):
+        df = tables[name]
+        if name == "convergence":
+            df = df[df.metric == metric]
+        md += [f"## {name}", "", frame_markdown(df), ""]
+    (out / "tables.md").write_text("\n".join(md))
+    return tables
