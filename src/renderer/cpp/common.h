@@ -1,0 +1,78 @@
+// Small vector maths shared by every kernel: double precision on the path,
+// float32 only in the ray buffers handed to Embree.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+
+namespace pgi {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kInvPi = 1.0 / kPi;
+constexpr double kInv4Pi = 1.0 / (4.0 * kPi);
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+struct Vec3 {
+    double x = 0, y = 0, z = 0;
+    Vec3() = default;
+    constexpr Vec3(double x_, double y_, double z_) : x(x_), y(y_), z(z_) {}
+    explicit constexpr Vec3(double s) : x(s), y(s), z(s) {}
+    double operator[](int i) const { return i == 0 ? x : (i == 1 ? y : z); }
+    double &operator[](int i) { return i == 0 ? x : (i == 1 ? y : z); }
+    Vec3 operator+(const Vec3 &b) const { return {x + b.x, y + b.y, z + b.z}; }
+    Vec3 operator-(const Vec3 &b) const { return {x - b.x, y - b.y, z - b.z}; }
+    Vec3 operator*(const Vec3 &b) const { return {x * b.x, y * b.y, z * b.z}; }
+    Vec3 operator/(const Vec3 &b) const { return {x / b.x, y / b.y, z / b.z}; }
+    Vec3 operator*(double s) const { return {x * s, y * s, z * s}; }
+    Vec3 operator/(double s) const { return {x / s, y / s, z / s}; }
+    Vec3 operator-() const { return {-x, -y, -z}; }
+    Vec3 &operator+=(const Vec3 &b) { x += b.x; y += b.y; z += b.z; return *this; }
+    Vec3 &operator*=(const Vec3 &b) { x *= b.x; y *= b.y; z *= b.z; return *this; }
+    Vec3 &operator*=(double s) { x *= s; y *= s; z *= s; return *this; }
+};
+
+using RGB = Vec3;
+
+inline Vec3 operator*(double s, const Vec3 &v) { return v * s; }
+inline double dot(const Vec3 &a, const Vec3 &b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+inline Vec3 cross(const Vec3 &a, const Vec3 &b) {
+    return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+inline double length(const Vec3 &v) { return std::sqrt(dot(v, v)); }
+inline Vec3 normalize(const Vec3 &v) { return v / length(v); }
+inline double max_component(const Vec3 &v) { return std::max(v.x, std::max(v.y, v.z)); }
+inline double mean(const Vec3 &v) { return (v.x + v.y + v.z) / 3.0; }
+inline double max_abs_component(const Vec3 &v) {
+    return std::max(std::abs(v.x), std::max(std::abs(v.y), std::abs(v.z)));
+}
+inline Vec3 exp(const Vec3 &v) { return {std::exp(v.x), std::exp(v.y), std::exp(v.z)}; }
+inline bool is_black(const RGB &c) { return c.x == 0 && c.y == 0 && c.z == 0; }
+inline bool is_finite(const Vec3 &v) {
+    return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+inline Vec3 reflect(const Vec3 &w, const Vec3 &n) { return n * (2.0 * dot(w, n)) - w; }
+
+// Orthonormal basis around a unit vector (Duff et al. 2017, branchless).
+struct Frame {
+    Vec3 s, t, n;
+    Frame() = default;
+    explicit Frame(const Vec3 &normal) : n(normal) {
+        double sign = std::copysign(1.0, n.z);
+        double a = -1.0 / (sign + n.z);
+        double b = n.x * n.y * a;
+        s = {1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x};
+        t = {b, sign + n.y * n.y * a, -n.y};
+    }
+    Vec3 to_world(const Vec3 &v) const { return s * v.x + t * v.y + n * v.z; }
+    Vec3 to_local(const Vec3 &v) const { return {dot(v, s), dot(v, t), dot(v, n)}; }
+};
+
+// Power heuristic with beta = 2 (Veach 1997, eq. 9.13) for two strategies.
+inline double power_heuristic(double pdf_a, double pdf_b) {
+    double a = pdf_a * pdf_a, b = pdf_b * pdf_b;
+    return a + b > 0 ? a / (a + b) : 0.0;
+}
+
+}  // namespace pgi

@@ -1,0 +1,336 @@
+// Python bindings of the native core: scene construction, the wavefront
+// kernels of each method, and probes of the sampling routines for tests.
+#include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+#include <nanobind/stl/array.h>
+#include <nanobind/stl/shared_ptr.h>
+#include <nanobind/stl/tuple.h>
+
+#include <memory>
+#include <stdexcept>
+
+#include "pt.h"
+
+namespace nb = nanobind;
+using namespace nb::literals;
+using namespace pgi;
+
+using V3 = std::array<double, 3>;
+template <typename T>
+using Array = nb::ndarray<T, nb::c_contig, nb::device::cpu>;
+template <typename T>
+using NumpyOut = nb::ndarray<nb::numpy, T>;
+
+static Vec3 vec(const V3 &a) { return {a[0], a[1], a[2]}; }
+
+static void check_len(size_t got, size_t want, const char *what) {
+    if (got < want) throw std::invalid_argument(std::string(what) + ": buffer too small");
+}
+
+static RayBuffers ray_buffers(Array<float> org, Array<float> dir, Array<float> tmax) {
+    if (org.ndim() != 2 || org.shape(1) != 3 || dir.ndim() != 2 || dir.shape(1) != 3 || tmax.ndim() != 1)
+        throw std::invalid_argument("ray buffers must be (n, 3), (n, 3), (n,) float32");
+    size_t n = tmax.shape(0);
+    check_len(org.shape(0), n, "origins");
+    check_len(dir.shape(0), n, "directions");
+    return RayBuffers{org.data(), dir.data(), tmax.data(), n};
+}
+
+static Hits hits_of(Array<float> tfar, Array<int32_t> prim, Array<float> u, Array<float> v) {
+    size_t n = prim.shape(0);
+    check_len(tfar.shape(0), n, "tfar");
+    check_len(u.shape(0), n, "u");
+    check_len(v.shape(0), n, "v");
+    return Hits{tfar.data(), u.data(), v.data(), prim.data(), n};
+}
+
+template <typename T>
+static NumpyOut<T> to_numpy(std::vector<T> &&data, std::initializer_list<size_t> shape) {
+    auto heap = std::make_unique<std::vector<T>>(std::move(data));
+    T *ptr = heap->data();
+    // The capsule owns the vector from here on and frees it with the array.
+    nb::capsule owner(heap.get(), [](void *p) noexcept {
+        std::unique_ptr<std::vector<T>>(static_cast<std::vector<T> *>(p));
+    });
+    heap.release();
+    return NumpyOut<T>(ptr, shape.size(), shape.begin(), owner);
+}
+
+static NumpyOut<double> film_image(const Film &f) {
+    std::vector<double> img(f.sum.size());
+    double inv = f.samples_per_pixel ? 1.0 / double(f.samples_per_pixel) : 0.0;
+    for (size_t i = 0; i < img.size(); ++i) img[i] = f.sum[i] * inv;
+    return to_numpy(std::move(img), {size_t(f.height), size_t(f.width), 3});
+}
+
+static void add_scene(nb::module_ &m) {
+    nb::class_<Scene>(m, "Scene")
+        .def(nb::new_([]() { return std::make_shared<Scene>(); }))
+        .def("set_triangles",
+             [](Scene &s, Array<double> verts, Array<int32_t> material, Array<int32_t> emitter,
+                Array<int32_t> interior, Array<int32_t> exterior) {
+                 if (verts.ndim() != 3 || verts.shape(1) != 3 || verts.shape(2) != 3)
+                     throw std::invalid_argument("vertices must be (T, 3, 3) float64");
+                 size_t n = verts.shape(0);
+                 for (auto *a : {&material, &emitter, &interior, &exterior}) check_len(a->shape(0), n, "triangle attribute");
+                 s.triangles.resize(n);
+                 const double *v = verts.data();
+                 for (size_t i = 0; i < n; ++i) {
+                     Triangle &t = s.triangles[i];
+                     Vec3 a(v[9 * i], v[9 * i + 1], v[9 * i + 2]), b(v[9 * i + 3], v[9 * i + 4], v[9 * i + 5]),
+                         c(v[9 * i + 6], v[9 * i + 7], v[9 * i + 8]);
+                     t.p0 = a;
+                     t.e1 = b - a;
+                     t.e2 = c - a;
+                     Vec3 nrm = cross(t.e1, t.e2);
+                     double len = length(nrm);
+                     if (!(len > 0)) throw std::invalid_argument("degenerate triangle passed to the core");
+                     t.n = nrm / len;
+                     t.area = 0.5 * len;
+                     t.material = material.data()[i];
+                     t.emitter = emitter.data()[i];
+                     t.interior = interior.data()[i];
+                     t.exterior = exterior.data()[i];
+                 }
+             })
+        .def("add_material",
+             [](Scene &s, int type, V3 reflectance, double ior) {
+                 s.materials.push_back(Material{MaterialType(type), vec(reflectance), ior});
+                 return int(s.materials.size() - 1);
+             }, "type"_a, "reflectance"_a, "ior"_a)
+        .def("add_homogeneous_medium",
+             [](Scene &s, V3 sigma_t, V3 albedo, int phase, double g) {
+                 Medium m;
+                 m.type = MediumType::Homogeneous;
+                 m.sigma_t = vec(sigma_t);
+                 m.albedo = vec(albedo);
+                 m.phase = Phase{PhaseType(phase), g};
+                 s.media.push_back(std::move(m));
+                 return int(s.media.size() - 1);
+             }, "sigma_t"_a, "albedo"_a, "phase"_a, "g"_a)
+        .def("add_grid_medium",
+             [](Scene &s, Array<float> density_zyx, Array<double> world_to_local, double sigma, V3 albedo,
+                int phase, double g, int majorant_cell) {
+                 if (density_zyx.ndim() != 3) throw std::invalid_argument("density must be 3D (z, y, x)");
+                 if (world_to_local.ndim() != 2 || world_to_local.shape(0) < 3 || world_to_local.shape(1) != 4)
+                     throw std::invalid_argument("world_to_local must be (3|4, 4)");
+                 Medium m;
+                 m.type = MediumType::Grid;
+                 m.grid_sigma = sigma;
+                 m.albedo = vec(albedo);
+                 m.phase = Phase{PhaseType(phase), g};
+                 DensityGrid &G = m.grid;
+                 G.nz = int(density_zyx.shape(0));
+                 G.ny = int(density_zyx.shape(1));
+                 G.nx = int(density_zyx.shape(2));
+                 G.values.assign(density_zyx.data(), density_zyx.data() + density_zyx.size());
+                 for (int r = 0; r < 3; ++r)
+                     for (int c = 0; c < 4; ++c) G.world_to_local[r][c] = world_to_local.data()[4 * r + c];
+                 G.build_majorants(majorant_cell);
+                 s.media.push_back(std::move(m));
+                 return int(s.media.size() - 1);
+             }, "density_zyx"_a, "world_to_local"_a, "sigma"_a, "albedo"_a, "phase"_a, "g"_a,
+             "majorant_cell"_a)
+        .def("add_area_light",
+             [](Scene &s, V3 radiance, Array<int32_t> triangles) {
+                 AreaEmitter e;
+                 e.radiance = vec(radiance);
+                 e.triangles.assign(triangles.data(), triangles.data() + triangles.size());
+                 s.area_emitters.push_back(std::move(e));
+                 Light l;
+                 l.type = LightType::Area;
+                 l.emitter = int(s.area_emitters.size() - 1);
+                 s.lights.push_back(l);
+                 return l.emitter;
+             }, "radiance"_a, "triangles"_a)
+        .def("add_point_light",
+             [](Scene &s, V3 position, V3 intensity) {
+                 Light l;
+                 l.type = LightType::Point;
+                 l.position = vec(position);
+                 l.intensity = vec(intensity);
+                 s.lights.push_back(l);
+             }, "position"_a, "intensity"_a)
+        .def("add_spot_light",
+             [](Scene &s, V3 position, V3 direction, V3 intensity, double cutoff, double beam_width) {
+                 Light l;
+                 l.type = LightType::Spot;
+                 l.position = vec(position);
+                 l.direction = normalize(vec(direction));
+                 l.intensity = vec(intensity);
+                 l.cutoff = cutoff;
+                 l.beam_width = std::min(beam_width, cutoff);
+                 l.cos_cutoff = std::cos(cutoff);
+                 l.cos_beam = std::cos(l.beam_width);
+                 s.lights.push_back(l);
+             }, "position"_a, "direction"_a, "intensity"_a, "cutoff"_a, "beam_width"_a)
+        .def("add_directional_light",
+             [](Scene &s, V3 direction, V3 irradiance) {
+                 Light l;
+                 l.type = LightType::Directional;
+                 l.direction = normalize(vec(direction));
+                 l.intensity = vec(irradiance);
+                 s.lights.push_back(l);
+             }, "direction"_a, "irradiance"_a)
+        .def("set_camera",
+             [](Scene &s, V3 origin, V3 forward, V3 right, V3 up, int width, int height, int medium) {
+                 s.camera = Camera{vec(origin), vec(forward), vec(right), vec(up), width, height, medium};
+             }, "origin"_a, "forward"_a, "right"_a, "up"_a, "width"_a, "height"_a, "medium"_a)
+        .def("finalize", &Scene::finalize)
+        .def_prop_ro("triangle_count", [](const Scene &s) { return s.triangles.size(); })
+        .def_prop_ro("ray_epsilon", [](const Scene &s) { return s.ray_epsilon; })
+        // Probes for tests: estimators evaluated in isolation.
+        .def("transmittance",
+             [](const Scene &s, int medium, V3 origin, V3 direction, double tmax, uint64_t seed, int64_t n) {
+                 MediumStats st;
+                 RGB sum(0.0);
+                 Vec3 o = vec(origin), d = normalize(vec(direction));
+                 for (int64_t i = 0; i < n; ++i) {
+                     Sampler rng(stream_key(seed, uint64_t(i), 0x7472));
+                     sum += transmittance(s.media.at(medium), o, d, tmax, rng, st);
+                 }
+                 RGB mean_tr = sum / double(std::max<int64_t>(1, n));
+                 return std::make_tuple(V3{mean_tr.x, mean_tr.y, mean_tr.z}, st.density_lookups);
+             }, "medium"_a, "origin"_a, "direction"_a, "tmax"_a, "seed"_a, "n"_a)
+        .def("free_flight",
+             [](const Scene &s, int medium, V3 origin, V3 direction, double tmax, uint64_t seed, int64_t n) {
+                 // Returns (t or inf, weight rgb) per sample: for testing distance sampling.
+                 std::vector<double> t(n), w(3 * n);
+                 MediumStats st;
+                 Vec3 o = vec(origin), d = normalize(vec(direction));
+                 for (int64_t i = 0; i < n; ++i) {
+                     Sampler rng(stream_key(seed, uint64_t(i), 0x6666));
+                     FreeFlight f = sample_free_flight(s.media.at(medium), o, d, tmax, rng, st);
+                     t[i] = f.scattered ? f.t : kInf;
+                     w[3 * i] = f.weight.x; w[3 * i + 1] = f.weight.y; w[3 * i + 2] = f.weight.z;
+                 }
+                 return std::make_tuple(to_numpy(std::move(t), {size_t(n)}), to_numpy(std::move(w), {size_t(n), 3}));
+             }, "medium"_a, "origin"_a, "direction"_a, "tmax"_a, "seed"_a, "n"_a)
+        .def("density",
+             [](const Scene &s, int medium, Array<double> points) {
+                 size_t n = points.shape(0);
+                 std::vector<double> out(n);
+                 const Medium &m = s.media.at(medium);
+                 for (size_t i = 0; i < n; ++i) {
+                     Vec3 p(points.data()[3 * i], points.data()[3 * i + 1], points.data()[3 * i + 2]);
+                     out[i] = m.grid.density_local(m.grid.to_local(p));
+                 }
+                 return to_numpy(std::move(out), {n});
+             }, "medium"_a, "points"_a);
+}
+
+static void add_sampling_probes(nb::module_ &m) {
+    // Each takes uniform numbers and returns what the renderer would sample.
+    m.def("sample_bsdf",
+          [](int type, V3 reflectance, double ior, V3 normal, V3 wo, Array<double> u) {
+              Material mat{MaterialType(type), vec(reflectance), ior};
+              size_t n = u.shape(0);
+              std::vector<double> wi(3 * n), weight(3 * n), pdf(n);
+              std::vector<uint8_t> valid(n), delta(n);
+              Vec3 nn = normalize(vec(normal)), w = normalize(vec(wo));
+              for (size_t i = 0; i < n; ++i) {
+                  const double *ui = u.data() + 3 * i;
+                  BsdfSample s = bsdf_sample(mat, nn, w, ui[0], ui[1], ui[2]);
+                  for (int a = 0; a < 3; ++a) {
+                      wi[3 * i + a] = s.wi[a];
+                      weight[3 * i + a] = s.weight[a];
+                  }
+                  pdf[i] = s.pdf;
+                  valid[i] = s.valid;
+                  delta[i] = s.delta;
+              }
+              return std::make_tuple(to_numpy(std::move(wi), {n, 3}), to_numpy(std::move(weight), {n, 3}),
+                                     to_numpy(std::move(pdf), {n}), to_numpy(std::move(valid), {n}),
+                                     to_numpy(std::move(delta), {n}));
+          }, "type"_a, "reflectance"_a, "ior"_a, "normal"_a, "wo"_a, "u"_a);
+    m.def("eval_bsdf",
+          [](int type, V3 reflectance, double ior, V3 normal, V3 wo, Array<double> wi) {
+              Material mat{MaterialType(type), vec(reflectance), ior};
+              size_t n = wi.shape(0);
+              std::vector<double> f(3 * n), pdf(n);
+              Vec3 nn = normalize(vec(normal)), w = normalize(vec(wo));
+              for (size_t i = 0; i < n; ++i) {
+                  Vec3 d(wi.data()[3 * i], wi.data()[3 * i + 1], wi.data()[3 * i + 2]);
+                  RGB v = bsdf_eval(mat, nn, w, d);
+                  for (int a = 0; a < 3; ++a) f[3 * i + a] = v[a];
+                  pdf[i] = bsdf_pdf(mat, nn, w, d);
+              }
+              return std::make_tuple(to_numpy(std::move(f), {n, 3}), to_numpy(std::move(pdf), {n}));
+          }, "type"_a, "reflectance"_a, "ior"_a, "normal"_a, "wo"_a, "wi"_a);
+    m.def("sample_phase",
+          [](int type, double g, V3 wo, Array<double> u) {
+              Phase ph{PhaseType(type), g};
+              size_t n = u.shape(0);
+              std::vector<double> wi(3 * n), pdf(n);
+              Vec3 w = normalize(vec(wo));
+              for (size_t i = 0; i < n; ++i) {
+                  double p;
+                  Vec3 d = phase_sample(ph, w, u.data()[2 * i], u.data()[2 * i + 1], p);
+                  for (int a = 0; a < 3; ++a) wi[3 * i + a] = d[a];
+                  pdf[i] = p;
+              }
+              return std::make_tuple(to_numpy(std::move(wi), {n, 3}), to_numpy(std::move(pdf), {n}));
+          }, "type"_a, "g"_a, "wo"_a, "u"_a);
+    m.def("eval_phase",
+          [](int type, double g, V3 wo, Array<double> wi) {
+              Phase ph{PhaseType(type), g};
+              size_t n = wi.shape(0);
+              std::vector<double> out(n);
+              Vec3 w = normalize(vec(wo));
+              for (size_t i = 0; i < n; ++i)
+                  out[i] = phase_eval(ph, w, Vec3(wi.data()[3 * i], wi.data()[3 * i + 1], wi.data()[3 * i + 2]));
+              return to_numpy(std::move(out), {n});
+          }, "type"_a, "g"_a, "wo"_a, "wi"_a);
+}
+
+static void add_path_tracer(nb::module_ &m) {
+    nb::class_<PathTracer>(m, "PathTracer")
+        .def(nb::init<std::shared_ptr<const Scene>, int, int, uint64_t, int, int>(), "scene"_a, "max_depth"_a,
+             "rr_depth"_a, "seed"_a, "spp_per_wave"_a, "threads"_a)
+        .def_prop_ro("capacity", &PathTracer::capacity)
+        .def("begin_wave",
+             [](PathTracer &pt, int64_t it, Array<float> o, Array<float> d, Array<float> t) {
+                 RayBuffers b = ray_buffers(o, d, t);
+                 check_len(b.capacity, pt.capacity(), "ray buffers");
+                 nb::gil_scoped_release release;
+                 return pt.begin_wave(it, b);
+             })
+        .def("shade",
+             [](PathTracer &pt, Array<float> tfar, Array<int32_t> prim, Array<float> u, Array<float> v) {
+                 Hits h = hits_of(tfar, prim, u, v);
+                 nb::gil_scoped_release release;
+                 return pt.shade(h);
+             })
+        .def("shadow_rays",
+             [](PathTracer &pt, Array<float> o, Array<float> d, Array<float> t) {
+                 RayBuffers b = ray_buffers(o, d, t);
+                 nb::gil_scoped_release release;
+                 return pt.shadow_rays(b);
+             })
+        .def("resolve_shadows",
+             [](PathTracer &pt, Array<float> tfar, Array<int32_t> prim) {
+                 Hits h{tfar.data(), nullptr, nullptr, prim.data(), prim.shape(0)};
+                 nb::gil_scoped_release release;
+                 pt.resolve_shadows(h);
+             })
+        .def("next_rays",
+             [](PathTracer &pt, Array<float> o, Array<float> d, Array<float> t) {
+                 RayBuffers b = ray_buffers(o, d, t);
+                 nb::gil_scoped_release release;
+                 return pt.next_rays(b);
+             })
+        .def("end_wave", &PathTracer::end_wave, nb::call_guard<nb::gil_scoped_release>())
+        .def("image", [](const PathTracer &pt) { return film_image(pt.film()); })
+        .def_prop_ro("samples_per_pixel", [](const PathTracer &pt) { return pt.film().samples_per_pixel; })
+        .def_prop_ro("nonfinite", [](const PathTracer &pt) { return pt.film().nonfinite; })
+        .def_prop_ro("density_lookups", &PathTracer::density_lookups)
+        .def_prop_ro("paths_traced", &PathTracer::paths_traced);
+}
+
+NB_MODULE(_core, m) {
+    m.doc() = "pgi native core: scene, media, sampling and the wavefront kernels of each method";
+    m.def("max_threads", []() { return omp_get_max_threads(); });
+    add_scene(m);
+    add_sampling_probes(m);
+    add_path_tracer(m);
+}

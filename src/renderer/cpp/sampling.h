@@ -1,0 +1,78 @@
+// Warps from the unit square to directions and points, each with its density.
+#pragma once
+
+#include <vector>
+
+#include "common.h"
+
+namespace pgi {
+
+// Shirley-Chiu concentric map, then Malley's method: pdf = cos(theta) / pi.
+inline Vec3 square_to_cosine_hemisphere(double u1, double u2) {
+    double a = 2 * u1 - 1, b = 2 * u2 - 1;
+    double r, phi;
+    if (a == 0 && b == 0) {
+        r = 0;
+        phi = 0;
+    } else if (a * a > b * b) {
+        r = a;
+        phi = (kPi / 4) * (b / a);
+    } else {
+        r = b;
+        phi = (kPi / 2) - (kPi / 4) * (a / b);
+    }
+    double x = r * std::cos(phi), y = r * std::sin(phi);
+    return {x, y, std::sqrt(std::max(0.0, 1 - x * x - y * y))};
+}
+
+inline Vec3 square_to_uniform_sphere(double u1, double u2) {
+    double z = 1 - 2 * u1;
+    double r = std::sqrt(std::max(0.0, 1 - z * z));
+    double phi = 2 * kPi * u2;
+    return {r * std::cos(phi), r * std::sin(phi), z};
+}
+
+// Barycentrics (b1, b2) uniform over a triangle.
+inline void square_to_triangle(double u1, double u2, double &b1, double &b2) {
+    double su = std::sqrt(u1);
+    b1 = 1 - su;
+    b2 = u2 * su;
+}
+
+// Direction with the given cosine to `axis`, azimuth from u.
+inline Vec3 direction_around(const Vec3 &axis, double cos_theta, double u) {
+    double sin_theta = std::sqrt(std::max(0.0, 1 - cos_theta * cos_theta));
+    double phi = 2 * kPi * u;
+    return Frame(axis).to_world({sin_theta * std::cos(phi), sin_theta * std::sin(phi), cos_theta});
+}
+
+// Piecewise-constant distribution over n items, sampled by inverting its CDF.
+class Distribution1D {
+public:
+    Distribution1D() = default;
+    explicit Distribution1D(const std::vector<double> &weights) : cdf_(weights.size() + 1, 0.0) {
+        for (size_t i = 0; i < weights.size(); ++i) cdf_[i + 1] = cdf_[i] + std::max(0.0, weights[i]);
+        total_ = cdf_.back();
+        if (total_ > 0)
+            for (double &c : cdf_) c /= total_;
+    }
+    size_t size() const { return cdf_.empty() ? 0 : cdf_.size() - 1; }
+    double total() const { return total_; }
+    double pmf(size_t i) const { return cdf_[i + 1] - cdf_[i]; }
+    // Index with pmf(index) > 0 for u in [0, 1).
+    size_t sample(double u) const {
+        size_t lo = 0, hi = size();
+        while (hi - lo > 1) {
+            size_t mid = (lo + hi) / 2;
+            if (cdf_[mid] <= u) lo = mid; else hi = mid;
+        }
+        while (lo + 1 < size() && pmf(lo) == 0) ++lo;
+        return lo;
+    }
+
+private:
+    std::vector<double> cdf_;
+    double total_ = 0;
+};
+
+}  // namespace pgi

@@ -1,0 +1,107 @@
+#include "scene.h"
+
+namespace pgi {
+
+void Scene::finalize() {
+    // Scene size sets the surface offset so that scaled scenes behave alike.
+    Vec3 lo(kInf), hi(-kInf);
+    for (const Triangle &t : triangles)
+        for (const Vec3 &p : {t.p0, t.p0 + t.e1, t.p0 + t.e2})
+            for (int a = 0; a < 3; ++a) {
+                lo[a] = std::min(lo[a], p[a]);
+                hi[a] = std::max(hi[a], p[a]);
+            }
+    if (triangles.empty()) lo = hi = Vec3(0.0);
+    scene_center = (lo + hi) * 0.5;
+    scene_radius = std::max(1e-30, length(hi - lo) * 0.5);
+    ray_epsilon = 1e-5 * scene_radius;
+
+    for (AreaEmitter &e : area_emitters) {
+        std::vector<double> areas;
+        for (int i : e.triangles) areas.push_back(triangles[i].area);
+        e.by_area = Distribution1D(areas);
+        e.area = e.by_area.total();
+    }
+    // Pick lights in proportion to an estimate of their power.
+    std::vector<double> power;
+    light_of_emitter_.assign(area_emitters.size(), -1);
+    for (size_t i = 0; i < lights.size(); ++i) {
+        const Light &l = lights[i];
+        double w = 0;
+        switch (l.type) {
+            case LightType::Area:
+                w = mean(area_emitters[l.emitter].radiance) * area_emitters[l.emitter].area * kPi;
+                light_of_emitter_[l.emitter] = int(i);
+                break;
+            case LightType::Point: w = mean(l.intensity) * 4 * kPi; break;
+            case LightType::Spot: w = mean(l.intensity) * 2 * kPi * (1 - std::cos(0.5 * (l.cutoff + l.beam_width))); break;
+            case LightType::Directional: w = mean(l.intensity) * kPi * scene_radius * scene_radius; break;
+        }
+        power.push_back(w);
+    }
+    light_selection = Distribution1D(power);
+}
+
+LightSample Scene::sample_light(const Vec3 &p, Sampler &rng) const {
+    LightSample s;
+    double u_pick = rng.next(), u1 = rng.next(), u2 = rng.next(), u3 = rng.next();
+    if (light_selection.size() == 0 || light_selection.total() <= 0) return s;
+    size_t li = light_selection.sample(u_pick);
+    double pick = light_selection.pmf(li);
+    const Light &l = lights[li];
+    switch (l.type) {
+        case LightType::Area: {
+            const AreaEmitter &e = area_emitters[l.emitter];
+            int tri = e.triangles[e.by_area.sample(u1)];
+            const Triangle &t = triangles[tri];
+            double b1, b2;
+            square_to_triangle(u2, u3, b1, b2);
+            Vec3 q = t.point(b1, b2);
+            Vec3 to = q - p;
+            double d2 = dot(to, to);
+            if (d2 <= 0) return s;
+            s.dist = std::sqrt(d2);
+            s.wi = to / s.dist;
+            double cos_l = -dot(s.wi, t.n);
+            if (cos_l <= 0) return s;  // back of a one-sided emitter
+            s.pdf = pick / e.area * d2 / cos_l;
+            s.value = e.radiance / s.pdf;
+            s.valid = true;
+            return s;
+        }
+        case LightType::Point:
+        case LightType::Spot: {
+            Vec3 to = l.position - p;
+            double d2 = dot(to, to);
+            if (d2 <= 0) return s;
+            s.dist = std::sqrt(d2);
+            s.wi = to / s.dist;
+            double falloff = l.type == LightType::Spot ? l.spot_falloff(-s.wi) : 1.0;
+            if (falloff <= 0) return s;
+            s.value = l.intensity * (falloff / (d2 * pick));
+            s.delta = s.valid = true;
+            return s;
+        }
+        case LightType::Directional: {
+            s.wi = -l.direction;
+            s.dist = kInf;
+            s.value = l.intensity / pick;
+            s.delta = s.valid = true;
+            return s;
+        }
+    }
+    return s;
+}
+
+double Scene::area_light_pdf(int tri, const Vec3 &from, const Vec3 &hit) const {
+    const Triangle &t = triangles[tri];
+    if (t.emitter < 0) return 0;
+    int li = light_of_emitter_[t.emitter];
+    Vec3 to = hit - from;
+    double d2 = dot(to, to);
+    double cos_l = std::abs(dot(to, t.n)) / std::sqrt(d2);
+    if (cos_l <= 0) return 0;
+    return light_selection.pmf(li) / area_emitters[t.emitter].area * d2 / cos_l;
+}
+
+}  // namespace pgi

@@ -1,0 +1,113 @@
+// The scene as the kernels see it: triangles (the same ones Embree traces),
+// materials, media, lights and the camera. Built once from Python.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "bsdf.h"
+#include "common.h"
+#include "medium.h"
+#include "rng.h"
+#include "sampling.h"
+
+namespace pgi {
+
+struct Triangle {
+    Vec3 p0, e1, e2, n;  // n: unit geometric normal, cross(e1, e2) direction
+    double area = 0;
+    int material = 0;
+    int emitter = -1;   // index into Scene::area_emitters, or -1
+    int interior = -1;  // medium behind the normal, -1 = vacuum
+    int exterior = -1;  // medium on the normal side
+    Vec3 point(double b1, double b2) const { return p0 + e1 * b1 + e2 * b2; }
+    // Medium a ray with direction d enters when it leaves this surface.
+    int medium_towards(const Vec3 &d) const { return dot(d, n) > 0 ? exterior : interior; }
+};
+
+enum class LightType : int { Area = 0, Point = 1, Spot = 2, Directional = 3 };
+
+struct AreaEmitter {
+    RGB radiance;
+    std::vector<int> triangles;
+    Distribution1D by_area;
+    double area = 0;
+};
+
+struct Light {
+    LightType type = LightType::Point;
+    int emitter = -1;  // area lights: index into area_emitters
+    Vec3 position;
+    Vec3 direction;    // spot axis / directional travel direction
+    RGB intensity;     // point/spot: W/sr; directional: irradiance
+    double cos_cutoff = 0, cutoff = 0, beam_width = 0, cos_beam = 1;
+    // Spot falloff as Mitsuba: 1 inside beam_width, linear in angle to 0 at cutoff.
+    double spot_falloff(const Vec3 &w) const {
+        double c = dot(w, direction);
+        if (c <= cos_cutoff) return 0;
+        if (c >= cos_beam) return 1;
+        return std::clamp((cutoff - std::acos(std::min(1.0, c))) / (cutoff - beam_width), 0.0, 1.0);
+    }
+};
+
+struct LightSample {
+    Vec3 wi;          // from the shading point towards the light
+    double dist = 0;  // to the light point (infinite for directional)
+    RGB value{0.0};   // emitted radiance / pdf, including the selection probability
+    double pdf = 0;   // solid-angle pdf (for MIS); 0 for delta lights
+    bool delta = false;
+    bool valid = false;
+};
+
+struct Camera {
+    Vec3 origin, forward, right, up;  // right/up scaled by the half-extents at distance 1
+    int width = 0, height = 0;
+    int medium = -1;
+    // World direction through film position (fx, fy) in pixels, (0,0) top-left.
+    Vec3 direction(double fx, double fy) const {
+        double sx = 2 * fx / width - 1, sy = 2 * fy / height - 1;
+        return normalize(forward + right * sx - up * sy);
+    }
+};
+
+class Scene {
+public:
+    std::vector<Triangle> triangles;
+    std::vector<Material> materials;
+    std::vector<Medium> media;
+    std::vector<AreaEmitter> area_emitters;
+    std::vector<Light> lights;
+    Distribution1D light_selection;  // by approximate power
+    Camera camera;
+    double ray_epsilon = 1e-5;  // surface offset, relative to the scene's size
+    double scene_radius = 1;
+    Vec3 scene_center;
+
+    void finalize();
+
+    // Offset a point on triangle `tri` towards the side of direction d.
+    Vec3 offset(const Vec3 &p, int tri, const Vec3 &d) const {
+        const Vec3 &n = triangles[tri].n;
+        double eps = ray_epsilon * (1 + max_abs_component(p) / scene_radius);
+        return p + n * (dot(d, n) > 0 ? eps : -eps);
+    }
+    double offset_length(const Vec3 &p) const {
+        return ray_epsilon * (1 + max_abs_component(p) / scene_radius);
+    }
+
+    LightSample sample_light(const Vec3 &p, Sampler &rng) const;
+    // Solid-angle pdf that sample_light would pick direction from `from` to the
+    // point `hit` on emissive triangle `tri`.
+    double area_light_pdf(int tri, const Vec3 &from, const Vec3 &hit) const;
+    // Radiance leaving triangle `tri` towards -d (one-sided).
+    RGB emitted(int tri, const Vec3 &d) const {
+        const Triangle &t = triangles[tri];
+        if (t.emitter < 0 || dot(d, t.n) >= 0) return RGB(0.0);
+        return area_emitters[t.emitter].radiance;
+    }
+
+private:
+    std::vector<int> light_of_emitter_;
+};
+
+}  // namespace pgi

@@ -1,0 +1,142 @@
+"""Hands a loaded scene to the native core and to Embree: the same triangles for both."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import _core
+from .errors import PgiError
+from .scene.model import Camera, DirectionalLight, Film, PointLight, Scene, SpotLight
+
+_MATERIAL_TYPES = {"diffuse": 0, "mirror": 1, "dielectric": 2, "null": 3}
+_PHASE_TYPES = {"isotropic": 0, "hg": 1}
+# Voxels per majorant cell: small enough to follow a plume's shape, large
+# enough that the DDA does not dominate.
+MAJORANT_CELL = 4
+# Triangles with less area than this fraction of the scene's squared size are
+# dropped: they have no normal, and no light can hit them.
+_DEGENERATE_AREA = 1e-14
+
+
+@dataclass
+class NativeScene:
+    core: _core.Scene
+    triangles: np.ndarray  # (T, 3, 3) float64, the triangles both Embree and the core use
+    dropped_triangles: int
+
+
+def camera_basis(camera: Camera, film: Film) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """forward, right, up: right/up scaled to the film's half-extent at unit distance.
+
+    Follows Mitsuba's look_at and perspective conventions (fov along ``fov_axis``).
+    """
+    forward = camera.target - camera.origin
+    forward = forward / np.linalg.norm(forward)
+    left = np.cross(camera.up, forward)
+    left = left / np.linalg.norm(left)
+    up = np.cross(forward, left)
+    aspect = film.width / film.height
+    half = math.tan(math.radians(camera.fov) / 2)
+    axis = camera.fov_axis
+    if axis == "smaller":
+        axis = "x" if film.width < film.height else "y"
+    elif axis == "larger":
+        axis = "x" if film.width >= film.height else "y"
+    if axis == "x":
+        tan_x, tan_y = half, half / aspect
+    elif axis == "y":
+        tan_x, tan_y = half * aspect, half
+    elif axis == "diagonal":
+        diag = math.hypot(film.width, film.height)
+        tan_x, tan_y = half * film.width / diag, half * film.height / diag
+    else:
+        raise PgiError(f"camera.fov_axis: unknown axis {camera.fov_axis!r}")
+    return forward, -left * tan_x, up * tan_y
+
+
+def build_native_scene(scene: Scene) -> NativeScene:
+    """Flatten shapes into one triangle list and describe everything else to the core."""
+    core = _core.Scene()
+    material_ids = {}
+    for name, m in scene.materials.items():
+        material_ids[name] = core.add_material(
+            _MATERIAL_TYPES[m.type], tuple(map(float, m.reflectance)), float(m.ior)
+        )
+    medium_ids = {}
+    for name, m in scene.media.items():
+        phase, g = _PHASE_TYPES[m.phase.type], float(m.phase.g)
+        if m.type == "homogeneous":
+            sigma_t = tuple(float(s) * m.scale for s in m.sigma_t)
+            medium_ids[name] = core.add_homogeneous_medium(sigma_t, tuple(m.albedo), phase, g)
+        else:
+            density_zyx = np.ascontiguousarray(np.transpose(m.density, (2, 1, 0)), np.float32)
+            world_to_local = np.linalg.inv(np.asarray(m.to_world, np.float64))
+            medium_ids[name] = core.add_grid_medium(
+                density_zyx,
+                np.ascontiguousarray(world_to_local[:3]),
+                float(m.sigma_t[0]) * m.scale,
+                tuple(m.albedo),
+                phase,
+                g,
+                MAJORANT_CELL,
+            )
+
+    def medium(name: str | None) -> int:
+        return -1 if name is None else medium_ids[name]
+
+    tris, mats, inside, outside, owner = [], [], [], [], []
+    for index, shape in enumerate(scene.shapes):
+        t = shape.vertices[shape.faces]
+        tris.append(t)
+        n = len(t)
+        mats.append(np.full(n, material_ids[shape.material], np.int32))
+        inside.append(np.full(n, medium(shape.interior), np.int32))
+        outside.append(np.full(n, medium(shape.exterior), np.int32))
+        owner.append(np.full(n, index, np.int32))
+    triangles = np.concatenate(tris).astype(np.float64)
+    owner = np.concatenate(owner)
+    area = 0.5 * np.linalg.norm(
+        np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0]), axis=1
+    )
+    extent = float(np.ptp(triangles.reshape(-1, 3), axis=0).max())
+    keep = area > _DEGENERATE_AREA * max(extent, 1e-300) ** 2
+    triangles = np.ascontiguousarray(triangles[keep])
+    owner = owner[keep]
+    mats, inside, outside = (np.concatenate(a)[keep] for a in (mats, inside, outside))
+
+    emitter = np.full(len(triangles), -1, np.int32)
+    for index, shape in enumerate(scene.shapes):
+        if shape.emission is not None:
+            members = np.flatnonzero(owner == index).astype(np.int32)
+            emitter[members] = core.add_area_light(tuple(map(float, shape.emission)), members)
+    core.set_triangles(triangles, mats, emitter, inside, outside)
+
+    for light in scene.lights:
+        if isinstance(light, PointLight):
+            core.add_point_light(tuple(light.position), tuple(light.intensity))
+        elif isinstance(light, SpotLight):
+            core.add_spot_light(
+                tuple(light.position),
+                tuple(light.target - light.position),
+                tuple(light.intensity),
+                math.radians(light.cutoff_angle),
+                math.radians(light.beam_width),
+            )
+        elif isinstance(light, DirectionalLight):
+            core.add_directional_light(tuple(light.direction), tuple(light.irradiance))
+
+    forward, right, up = camera_basis(scene.camera, scene.film)
+    core.set_camera(
+        tuple(scene.camera.origin),
+        tuple(forward),
+        tuple(right),
+        tuple(up),
+        scene.film.width,
+        scene.film.height,
+        medium(scene.camera.medium),
+    )
+    core.finalize()
+    return NativeScene(core, triangles, int((~keep).sum()))

@@ -1,0 +1,72 @@
+"""Image files through OpenImageIO: linear float EXR in, linear float EXR out."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import OpenImageIO as oiio
+
+from .errors import PgiError
+
+
+def read_exr(path: str | Path) -> np.ndarray:
+    """Read an image as float32 (H, W, 3); a single channel is repeated, alpha is dropped."""
+    path = Path(path)
+    if not path.is_file():
+        raise PgiError(f"{path}: no such image file")
+    buf = oiio.ImageBuf(str(path))
+    if buf.has_error:
+        raise PgiError(f"{path}: cannot read image: {buf.geterror()}")
+    pixels = buf.get_pixels(oiio.FLOAT)
+    if pixels is None or pixels.ndim != 3:
+        raise PgiError(f"{path}: cannot read pixels: {buf.geterror() or 'unexpected layout'}")
+    channels = pixels.shape[2]
+    if channels == 1:
+        pixels = np.repeat(pixels, 3, axis=2)
+    elif channels >= 3:
+        pixels = pixels[:, :, :3]
+    else:
+        raise PgiError(f"{path}: expected 1, 3 or 4 channels, found {channels}")
+    return np.ascontiguousarray(pixels, dtype=np.float32)
+
+
+def write_exr(path: str | Path, image: np.ndarray, metadata: dict | None = None) -> None:
+    """Write (H, W, 3) linear RGB as a float EXR, atomically: a failed write leaves nothing.
+
+    ``metadata`` is stored as a JSON string attribute ``pgi`` in the header.
+    """
+    path = Path(path)
+    image = np.asarray(image, dtype=np.float32)
+    if image.ndim != 3 or image.shape[2] != 3:
+        raise ValueError(f"expected an (H, W, 3) image, got shape {image.shape}")
+    if not np.all(np.isfinite(image)):
+        raise ValueError(f"refusing to write non-finite pixels to {path}")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    spec = oiio.ImageSpec(image.shape[1], image.shape[0], 3, oiio.FLOAT)
+    spec.channelnames = ("R", "G", "B")
+    spec.attribute("compression", "zip")
+    if metadata:
+        spec.attribute("pgi", json.dumps(metadata, default=str))
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}.exr")
+    out = oiio.ImageOutput.create(str(tmp))
+    if out is None:
+        raise PgiError(f"{path}: cannot create image writer: {oiio.geterror()}")
+    try:
+        if not out.open(str(tmp), spec) or not out.write_image(image):
+            raise PgiError(f"{path}: cannot write image: {out.geterror()}")
+        out.close()
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def write_json(path: str | Path, data: dict) -> None:
+    """Write a JSON sidecar atomically."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    tmp.write_text(json.dumps(data, indent=2, sort_keys=True, default=str) + "\n")
+    os.replace(tmp, path)

@@ -1,0 +1,48 @@
+"""Registry of progressive methods: id -> class. Each method lives in its own module."""
+
+from __future__ import annotations
+
+from importlib import import_module
+from typing import Protocol
+
+import numpy as np
+
+from ..errors import PgiError
+from ..scene.model import Scene
+
+
+class Method(Protocol):
+    """A progressive method: each iteration is an independent estimate, the image their mean."""
+
+    id: str
+    description: str
+
+    def __init__(self, scene: Scene, *, seed: int, threads: int, params: dict) -> None: ...
+    def run_iteration(self, iteration: int) -> None: ...
+    def image(self) -> np.ndarray: ...
+    def stats(self) -> dict: ...
+
+
+# id -> (module, class name, one-line description); modules import lazily so that
+# listing methods or rendering with one does not load the others' dependencies.
+_METHODS: dict[str, tuple[str, str, str]] = {
+    "pt": ("pt", "PathTracing", "volumetric path tracing, next-event estimation and MIS"),
+    "mitsuba": ("mitsuba", "MitsubaVolpath", "Mitsuba 3 volpath at the same budget"),
+}
+
+
+def method_ids() -> list[str]:
+    return list(_METHODS)
+
+
+def describe(method_id: str) -> str:
+    return _METHODS[method_id][2]
+
+
+def get_method(method_id: str) -> type[Method]:
+    if method_id not in _METHODS:
+        raise PgiError(
+            f"unknown method {method_id!r}; expected one of: {', '.join(method_ids())}"
+        )
+    module, cls, _ = _METHODS[method_id]
+    return getattr(import_module(f"{__name__}.{module}"), cls)

@@ -1,0 +1,68 @@
+"""Ray casting through embreex: batched, float32, split across threads.
+
+embreex releases the GIL inside ``EmbreeScene.run``, so halves of a batch
+traced from two Python threads run in parallel. It has no ``tnear``: the
+kernels offset ray origins off surfaces themselves.
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+from embreex import rtcore_scene
+from embreex.mesh_construction import TriangleMesh
+
+# Below this many rays a batch is not worth splitting across threads.
+_MIN_RAYS_PER_THREAD = 4096
+
+
+class RayBatch:
+    """Preallocated float32 buffers the native kernels write rays into."""
+
+    def __init__(self, capacity: int) -> None:
+        self.origins = np.zeros((capacity, 3), np.float32)
+        self.directions = np.zeros((capacity, 3), np.float32)
+        self.tmax = np.zeros(capacity, np.float32)
+
+    @property
+    def buffers(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return self.origins, self.directions, self.tmax
+
+
+class EmbreeTracer:
+    """All scene triangles in one Embree mesh; primitive ids index the native triangle list."""
+
+    def __init__(self, triangles: np.ndarray, threads: int) -> None:
+        self._scene = rtcore_scene.EmbreeScene()
+        TriangleMesh(self._scene, np.ascontiguousarray(triangles, dtype=np.float32))
+        self.threads = max(1, threads)
+        self._pool = ThreadPoolExecutor(self.threads) if self.threads > 1 else None
+        self.rays_traced = 0
+
+    def _run(self, batch: RayBatch, lo: int, hi: int) -> dict:
+        return self._scene.run(
+            batch.origins[lo:hi], batch.directions[lo:hi], batch.tmax[lo:hi], output=1
+        )
+
+    def intersect(
+        self, batch: RayBatch, n: int
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Closest hits of the first n rays: (tfar, primitive id or -1, u, v)."""
+        self.rays_traced += n
+        chunks = self.threads if self._pool and n >= 2 * _MIN_RAYS_PER_THREAD else 1
+        if chunks == 1:
+            parts = [self._run(batch, 0, n)]
+        else:
+            bounds = np.linspace(0, n, chunks + 1).astype(int)
+            parts = list(
+                self._pool.map(lambda i: self._run(batch, bounds[i], bounds[i + 1]), range(chunks))
+            )
+        if len(parts) == 1:
+            p = parts[0]
+            return p["tfar"], p["primID"], p["u"], p["v"]
+        return tuple(np.concatenate([p[k] for p in parts]) for k in ("tfar", "primID", "u", "v"))
+
+    def close(self) -> None:
+        if self._pool:
+            self._pool.shutdown()
