@@ -1,0 +1,210 @@
+"""The ``pgi`` command: render, reference, compare, methods, validate."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from . import __version__
+from .errors import PgiError
+
+
+def _floats(text: str) -> list[float]:
+    try:
+        values = [float(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated seconds, got {text!r}") from None
+    if not values or any(v <= 0 for v in values):
+        raise argparse.ArgumentTypeError(f"expected positive seconds, got {text!r}")
+    return values
+
+
+def _positive(kind: type):
+    def parse(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+        if value <= 0:
+            raise argparse.ArgumentTypeError(f"expected a positive value, got {text!r}")
+        return value
+
+    return parse
+
+
+def _split_sets(items: list[str]) -> tuple[list[str], dict]:
+    """--set key=value: ``method.X`` keys are method parameters, the rest edit the scene."""
+    overrides, params = [], {}
+    for item in items:
+        if "=" not in item:
+            raise PgiError(f"--set {item!r}: expected key=value")
+        key, value = item.split("=", 1)
+        if key.startswith("method."):
+            import yaml
+
+            params[key[len("method.") :]] = yaml.safe_load(value)
+        else:
+            overrides.append(item)
+    return overrides, params
+
+
+def _output(path: str) -> Path:
+    out = Path(path)
+    if out.suffix.lower() != ".exr":
+        raise PgiError(f"-o {path}: the output must be an .exr file")
+    return out
+
+
+def cmd_render(args: argparse.Namespace) -> int:
+    from .progressive import RenderSettings, render
+    from .scene import load_scene
+
+    out = _output(args.output)
+    overrides, params = _split_sets(args.set)
+    scene = load_scene(args.scene, overrides)
+    settings = RenderSettings(
+        method=args.method,
+        seed=args.seed,
+        threads=args.threads,
+        time_budget=args.time,
+        spp=args.spp,
+        snapshots=args.snapshots or (),
+        params=params,
+    )
+    info = render(scene, settings, out, progress=not args.quiet)
+    print(
+        f"{out}: {info['method']} {info['spp']} spp in {info['render_seconds']:.2f} s "
+        f"(load {info['load_seconds']:.2f} s), {info.get('nonfinite', 0)} non-finite samples dropped"
+    )
+    return 0
+
+
+def cmd_reference(args: argparse.Namespace) -> int:
+    from .imageio import write_exr, write_json
+    from .reference import render_reference
+    from .scene import load_scene
+
+    out = _output(args.output)
+    overrides, _ = _split_sets(args.set)
+    scene = load_scene(args.scene, overrides)
+    image, info = render_reference(scene, args.spp, seed=args.seed, threads=args.threads)
+    info = dict(info, scene=scene.name, version=__version__, spp=args.spp, seed=args.seed)
+    write_exr(out, image, info)
+    write_json(out.with_suffix(".json"), info)
+    print(f"{out}: Mitsuba reference, {args.spp} spp")
+    return 0
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    from compare.metrics import compare_images
+
+    from .imageio import read_exr
+
+    test, ref = read_exr(args.test), read_exr(args.reference)
+    try:
+        metrics = compare_images(test, ref)
+    except ValueError as e:
+        raise PgiError(f"{args.test} vs {args.reference}: {e}") from None
+    if args.json:
+        print(json.dumps(metrics, indent=2, sort_keys=True))
+    else:
+        for key, value in metrics.items():
+            print(f"{key:>16}  {value:.6g}")
+    return 0
+
+
+def cmd_methods(args: argparse.Namespace) -> int:
+    from .methods import describe, method_ids
+
+    for mid in method_ids():
+        print(f"{mid:<10} {describe(mid)}")
+    return 0
+
+
+def cmd_validate(args: argparse.Namespace) -> int:
+    from .scene import load_scene
+
+    overrides, _ = _split_sets(args.set)
+    scene = load_scene(args.scene, overrides)
+    triangles = sum(len(s.faces) for s in scene.shapes)
+    print(
+        f"{scene.path}: ok ({len(scene.shapes)} shapes, {triangles} triangles, "
+        f"{len(scene.media)} media, {scene.film.width}x{scene.film.height})"
+    )
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="pgi", description="Progressive global illumination in participating media."
+    )
+    parser.add_argument("--version", action="version", version=f"pgi {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    def scene_arg(p: argparse.ArgumentParser) -> None:
+        p.add_argument("scene", help="scene name, folder, or scene.yaml file")
+        p.add_argument(
+            "--set",
+            action="append",
+            default=[],
+            metavar="KEY=VALUE",
+            help="override a scene value (e.g. film.width=64) or, as method.KEY=VALUE, "
+            "a method parameter; repeatable",
+        )
+
+    r = sub.add_parser("render", help="render a scene with one method")
+    scene_arg(r)
+    r.add_argument("--method", required=True, help="method id (see `pgi methods`)")
+    r.add_argument("--time", type=_positive(float), help="render-time budget in seconds")
+    r.add_argument("--spp", type=_positive(int), help="stop after this many samples per pixel")
+    r.add_argument("--threads", type=_positive(int), default=1, help="worker threads (default 1)")
+    r.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    r.add_argument(
+        "--snapshots",
+        type=_floats,
+        help="comma-separated render times (s) at which to also write OUT.t<s>.exr",
+    )
+    r.add_argument("-o", "--output", required=True, help="output .exr (a .json sidecar is written)")
+    r.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    r.set_defaults(func=cmd_render)
+
+    ref = sub.add_parser("reference", help="render the Mitsuba 3 reference of a scene")
+    scene_arg(ref)
+    ref.add_argument("--spp", type=_positive(int), required=True, help="samples per pixel")
+    ref.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    ref.add_argument("--threads", type=_positive(int), help="Mitsuba threads (default: all)")
+    ref.add_argument("-o", "--output", required=True, help="output .exr")
+    ref.set_defaults(func=cmd_reference)
+
+    c = sub.add_parser("compare", help="error metrics of an image against a reference")
+    c.add_argument("test", help="rendered .exr")
+    c.add_argument("reference", help="reference .exr")
+    c.add_argument("--json", action="store_true", help="print JSON")
+    c.set_defaults(func=cmd_compare)
+
+    m = sub.add_parser("methods", help="list the available methods")
+    m.set_defaults(func=cmd_methods)
+
+    v = sub.add_parser("validate", help="check a scene file")
+    scene_arg(v)
+    v.set_defaults(func=cmd_validate)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except PgiError as e:
+        print(f"pgi: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("pgi: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,158 @@
+"""The timed, progressive render loop shared by every method.
+
+The clock counts only what a method does to produce its image (iterations,
+including any photon or light-path generation inside them); scene loading
+and BVH builds happen in the method's constructor and are reported
+separately, and writing snapshots pauses the clock.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import __version__
+from .errors import PgiError
+from .imageio import write_exr, write_json
+from .methods import get_method
+from .scene.model import Scene
+
+
+@dataclass
+class RenderSettings:
+    method: str
+    seed: int = 0
+    threads: int = 1
+    time_budget: float | None = None  # seconds of render time
+    spp: int | None = None  # stop after this many samples per pixel
+    snapshots: Sequence[float] = ()  # render times at which to write intermediate images
+    params: dict = field(default_factory=dict)
+
+
+def snapshot_path(out: Path, seconds: float) -> Path:
+    """out.exr -> out.t4.exr for a 4 s snapshot (out.t0.5.exr for half a second)."""
+    label = f"{seconds:g}"
+    return out.with_name(f"{out.stem}.t{label}{out.suffix}")
+
+
+def available_cores() -> int:
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
+class Progress:
+    """A bar on a terminal, plain lines otherwise (one every few seconds)."""
+
+    def __init__(self, total_seconds: float | None, total_spp: int | None, enabled: bool) -> None:
+        self.total_seconds, self.total_spp = total_seconds, total_spp
+        self.enabled = enabled
+        self.tty = sys.stderr.isatty()
+        self._last = 0.0
+
+    def update(self, seconds: float, spp: int, force: bool = False) -> None:
+        if not self.enabled:
+            return
+        frac = 0.0
+        if self.total_seconds:
+            frac = seconds / self.total_seconds
+        if self.total_spp:
+            frac = max(frac, spp / self.total_spp)
+        frac = min(frac, 1.0)
+        if self.tty:
+            bar = "#" * int(frac * 30)
+            sys.stderr.write(f"\r[{bar:<30}] {frac:6.1%}  {seconds:7.1f} s  {spp} spp")
+            if force:
+                sys.stderr.write("\n")
+            sys.stderr.flush()
+        elif force or seconds - self._last >= 5:
+            self._last = seconds
+            print(f"progress {frac:6.1%} {seconds:.1f} s {spp} spp", file=sys.stderr, flush=True)
+
+
+def render(
+    scene: Scene,
+    settings: RenderSettings,
+    out: Path,
+    *,
+    progress: bool = True,
+    on_snapshot: Callable[[Path, dict], None] | None = None,
+) -> dict:
+    """Render progressively; write snapshots and the final image with JSON sidecars.
+
+    Returns the final sidecar dictionary.
+    """
+    if settings.time_budget is None and settings.spp is None and not settings.snapshots:
+        raise PgiError("give --time, --spp or --snapshots: the render needs a stopping rule")
+    if settings.threads > available_cores():
+        raise PgiError(
+            f"--threads {settings.threads} asked for, but only {available_cores()} core(s) are "
+            "available to this process"
+        )
+    snapshots = sorted(float(s) for s in settings.snapshots)
+    budget = settings.time_budget
+    if budget is None and snapshots:
+        budget = snapshots[-1]
+    method_cls = get_method(settings.method)
+
+    t0 = time.perf_counter()
+    method = method_cls(scene, seed=settings.seed, threads=settings.threads, params=settings.params)
+    load_seconds = time.perf_counter() - t0
+
+    base = {
+        "version": __version__,
+        "scene": scene.name,
+        "scene_file": str(scene.path),
+        "method": settings.method,
+        "params": settings.params,
+        "seed": settings.seed,
+        "threads": settings.threads,
+        "time_budget": budget,
+        "spp_budget": settings.spp,
+        "load_seconds": load_seconds,
+        "resolution": [scene.film.width, scene.film.height],
+        "host": platform.node(),
+    }
+
+    def sidecar(render_seconds: float, budget_label: float | None) -> dict:
+        info = dict(base, render_seconds=render_seconds, **method.stats())
+        if budget_label is not None:
+            info["snapshot_budget"] = budget_label
+        return info
+
+    def write(path: Path, info: dict) -> None:
+        image = method.image()
+        if not np.all(np.isfinite(image)):  # the film drops non-finite samples; this is a bug guard
+            raise RuntimeError(f"{settings.method} produced non-finite pixels")
+        write_exr(path, image, info)
+        write_json(path.with_suffix(".json"), info)
+        if on_snapshot:
+            on_snapshot(path, info)
+
+    bar = Progress(budget, settings.spp, progress)
+    render_seconds = 0.0
+    iteration = 0
+    pending = list(snapshots)
+    while True:
+        spp = method.stats().get("spp", iteration)
+        if budget is not None and render_seconds >= budget:
+            break
+        if settings.spp is not None and spp >= settings.spp:
+            break
+        start = time.perf_counter()
+        method.run_iteration(iteration)
+        render_seconds += time.perf_counter() - start
+        iteration += 1
+        bar.update(render_seconds, method.stats().get("spp", iteration))
+        while pending and render_seconds >= pending[0]:
+            label = pending.pop(0)
+            write(snapshot_path(out, label), sidecar(render_seconds, label))
+    bar.update(render_seconds, method.stats().get("spp", iteration), force=True)
+    final = sidecar(render_seconds, None)
+    write(out, final)
+    return final
