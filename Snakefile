@@ -1,0 +1,67 @@
+# pgi comparison workflow: render every scene x method x seed (a snapshot per time budget),
+# render Mitsuba references as two independent halves, compare, tabulate, write the report.
+#
+#   snakemake --cores 2                                  # default config (configs/default.yaml)
+#   snakemake --cores 2 --configfile configs/tiny.yaml   # seconds-long smoke run
+#   snakemake --profile configs/profiles/slurm --configfile configs/full.yaml   # cluster
+#
+# See docs/workflow.md. Nothing below names a scene or a method: they come from the config
+# (methods: all = whatever `pgi methods` lists).
+
+import os
+import sys
+
+from snakemake.utils import min_version, validate
+
+min_version("8.0")
+
+SRC = os.path.join(workflow.basedir, "src")
+if SRC not in sys.path:
+    sys.path.insert(0, SRC)
+# jobs (shell and script) import the in-tree `compare` and `renderer` packages
+os.environ["PYTHONPATH"] = os.pathsep.join(
+    [SRC] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p and p != SRC]
+)
+
+from compare.plan import PlanError, make_plan  # noqa: E402
+
+
+configfile: "configs/default.yaml"
+
+
+validate(config, "configs/schema.yaml")
+
+try:
+    PLAN = make_plan(config, workflow.basedir)
+except PlanError as e:
+    raise WorkflowError(f"config: {e}")
+
+R = str(PLAN.results)
+REP = str(PLAN.reports)
+PY = sys.executable
+PGI = " ".join(PLAN.pgi)
+
+# Timed renders never run concurrently with each other (unless a profile raises the limit).
+if "timed_render" not in workflow.global_resources:
+    workflow.register_resource("timed_render", PLAN.timed_render_slots)
+
+
+wildcard_constraints:
+    scene=r"[A-Za-z0-9_.-]+",
+    method=r"[A-Za-z0-9_-]+",
+    seed=r"\d+",
+    half=r"[01]",
+
+
+include: "workflow/rules/common.smk"
+include: "workflow/rules/reference.smk"
+include: "workflow/rules/render.smk"
+include: "workflow/rules/compare.smk"
+include: "workflow/rules/report.smk"
+
+
+rule all:
+    input:
+        f"{REP}/index.html",
+        f"{REP}/tables/summary.csv",
+    default_target: True

@@ -1,0 +1,1 @@
+"""Static HTML report: pages, plots, image encoding, headless-browser check."""

@@ -1,0 +1,394 @@
+"""Build the static HTML report: ``index.html`` plus one ``scene-<name>.html`` per scene.
+
+Pages open from disk with no server and no network: CSS, JavaScript, plots (SVG) and the
+equal-time grids (PNG data URIs) are inline; the interactive viewer's linear image data sits
+next to the page in ``data/<scene>.js`` (a classic script, which browsers load from file://).
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import math
+from datetime import datetime, timezone
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from .. import tables as T
+from ..imageio import read_exr, read_json
+from ..metrics import relmse_map
+from . import images as I  # noqa: N812
+from .plots import convergence_svg, method_colours
+
+e = html.escape
+PLOT_METRICS = ("relmse", "flip", "one_minus_ssim")
+
+
+def _asset(name: str) -> str:
+    return resources.files("compare.report").joinpath("assets", name).read_text()
+
+
+def _page(title: str, body: str, head_extra: str = "") -> str:
+    return (
+        "<!doctype html>\n<html lang=en><head><meta charset=utf-8>"
+        f"<meta name=viewport content='width=device-width'><title>{e(title)}</title>"
+        f"<style>{_asset('style.css')}</style>{head_extra}</head>\n<body>\n{body}\n</body></html>\n"
+    )
+
+
+def _nav(scenes: list[str], current: str | None) -> str:
+    links = ['<a href="index.html">overview</a>']
+    for s in scenes:
+        if s == current:
+            links.append(f"<b>{e(s)}</b>")
+        else:
+            links.append(f'<a href="scene-{e(s)}.html">{e(s)}</a>')
+    return "<nav>" + " ".join(links) + "</nav>"
+
+
+def _write(path: Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(text)
+    tmp.replace(path)
+
+
+def _read_tables(folder: str | Path) -> dict[str, pd.DataFrame]:
+    folder = Path(folder)
+    names = ("runs", "summary", "convergence", "time_to_error", "stats", "best")
+    return {n: pd.read_csv(folder / f"{n}.csv") for n in names if (folder / f"{n}.csv").is_file()}
+
+
+def _metric_label(m: str) -> str:
+    return T.METRIC_LABELS.get(m, m)
+
+
+def _ref_error_for(metric: str, ref: dict[str, Any]) -> float | None:
+    return {"relmse": ref.get("ref_relmse"), "mse": ref.get("ref_mse")}.get(metric)
+
+
+def _legend(metric: str, factor: float) -> str:
+    return (
+        f'<p class="note">{e(_metric_label(metric))}, mean ± standard deviation over seeds. '
+        '<b>Bold green</b>: lowest mean error for that scene and budget. '
+        f'<span class="flag">⚠</span>: the reference\'s own relMSE is not at least {factor:g}x '
+        "below this cell's relMSE, so the reference may limit what the cell can show.</p>"
+    )
+
+
+# --- scene page -------------------------------------------------------------------------------
+
+
+def build_scene_page(spec: dict[str, Any]) -> None:
+    scene = spec["scene"]
+    out = Path(spec["reports"])
+    tabs = _read_tables(spec["tables"])
+    metric = spec["metric"]
+    factor = float(spec["factor"])
+    methods: list[str] = spec["methods"]
+    budgets: list[str] = spec["budgets"]
+    colours = method_colours(methods)
+    ref_info = read_json(spec["ref_json"])
+    ref = read_exr(spec["ref"]).astype(np.float64)
+    ev = I.auto_exposure(ref)
+
+    # images at full size for the grid, downsampled for the viewer
+    imgs: dict[str, dict[str, np.ndarray]] = {}
+    for m in methods:
+        imgs[m] = {}
+        for b, path in zip(budgets, spec["snapshots"][m], strict=True):
+            if Path(path).is_file():
+                imgs[m][b] = read_exr(path).astype(np.float64)
+    err = {m: {b: relmse_map(x, ref) for b, x in d.items()} for m, d in imgs.items()}
+    lo, hi = I.error_range([x for d in err.values() for x in d.values()])
+
+    body: list[str] = [
+        _nav(spec["scenes"], scene),
+        f"<h1>{e(scene)}</h1>",
+        f'<p class="note">{e(spec["title"])} — study <b>{e(spec["study"])}</b>. '
+        f"Images shown are seed {spec['seed']}; tables and plots use every seed.</p>",
+    ]
+
+    # reference quality
+    body.append("<h2>Reference</h2>")
+    spp = ref_info.get("spp_per_half") or []
+    body.append(
+        "<p>Mitsuba 3 volpath, two independent halves"
+        + (f" of {e(str(spp[0]))} spp each" if spp and spp[0] else "")
+        + f". Half-vs-half relMSE {T.fmt(ref_info.get('halves_relmse'))}; estimated relMSE of "
+        f"the reference (their average) <b>{T.fmt(ref_info.get('ref_relmse'))}</b> "
+        "(a quarter of the half-vs-half value: each half has error s², their difference 2s², "
+        "the average s²/2).</p>"
+    )
+
+    summary = tabs["summary"]
+    ss = summary[summary.scene == scene]
+    if not ss.empty:
+        body.append(f"<h2>Error at each budget ({e(_metric_label(metric))})</h2>")
+        body.append(_legend(metric, factor))
+        body.append(T.overview_html(ss, metric))
+
+    # convergence
+    runs = tabs["runs"]
+    rs = runs[runs.scene == scene]
+    if not rs.empty:
+        body.append("<h2>Convergence</h2>")
+        body.append(
+            '<p class="note">Log-log error vs render time (the renderer\'s own clock, loading '
+            "excluded). Lines: mean over seeds; bands: min–max over seeds; slope: least-squares "
+            "fit over all runs (unbiased methods approach −1 for MSE-type metrics).</p>"
+        )
+        body.append('<div class="plots">')
+        for pm in dict.fromkeys([metric, *PLOT_METRICS]):
+            if pm in rs:
+                svg = convergence_svg(
+                    rs, pm, f"{scene}: {_metric_label(pm)}", colours, _ref_error_for(pm, ref_info)
+                )
+                body.append(f"<figure>{svg}</figure>")
+        body.append("</div>")
+        conv = tabs.get("convergence")
+        tte = tabs.get("time_to_error")
+        if conv is not None and not conv.empty:
+            cs = conv[conv.scene == scene].pivot(index="method", columns="metric", values="slope")
+            cs = cs[[c for c in T.METRICS if c in cs.columns]].reset_index()
+            body.append("<h3>Fitted slopes (d log error / d log time)</h3>")
+            body.append(T.frame_html(cs, 3))
+        if tte is not None and not tte.empty:
+            ts = tte[tte.scene == scene].drop(columns=["scene"])
+            body.append("<h3>Time to reach a target error</h3>")
+            if not ts.empty:
+                body.append(
+                    f'<p class="note">Target: {e(_metric_label(ts.metric.iloc[0]))} = '
+                    f"{T.fmt(ts.target.iloc[0])} ({e(str(ts.target_from.iloc[0]))}); "
+                    "extrapolated = beyond the measured budgets, from the fitted slope.</p>"
+                )
+            body.append(T.frame_html(ts.drop(columns=["metric", "target", "target_from"]), 3))
+
+    # interactive viewer
+    vmax = int(spec.get("viewer_max_size", 512))
+    ref_v = I.downsample(ref, vmax)
+    data = {
+        "scene": scene,
+        "width": int(ref_v.shape[1]),
+        "height": int(ref_v.shape[0]),
+        "budgets": budgets,
+        "methods": methods,
+        "exposure": ev,
+        "err_lo": lo,
+        "err_hi": hi,
+        "colormap": [
+            [int(round(255 * c)) for c in row]
+            for row in I.false_colour(np.logspace(math.log10(lo), math.log10(hi), 256), lo, hi)
+        ],
+        "reference": I.b64(I.encode_rgbe(ref_v)),
+        "images": {
+            m: {b: I.b64(I.encode_rgbe(I.downsample(x, vmax))) for b, x in d.items()}
+            for m, d in imgs.items()
+        },
+    }
+    _write(
+        out / "data" / f"{scene}.js",
+        "window.PGI_DATA = " + json.dumps(data, separators=(",", ":")) + ";\n",
+    )
+    body.append("<h2>Interactive viewer</h2>")
+    body.append(
+        '<p class="note">Keys: <b>0</b> reference, <b>1–9</b> methods; <b>←/→</b> or '
+        "<b>[ ]</b> budget; <b>+/−</b> exposure, <b>e</b> auto exposure; wheel zooms, drag "
+        "pans (all panels together), double-click or <b>f</b> fits. The right panel is the "
+        "per-pixel relMSE of the selected image (log scale).</p>"
+    )
+    body.append('<div id="viewer"></div>')
+    body.append(f'<script src="data/{e(scene)}.js"></script>')
+    body.append(f"<script>{_asset('viewer.js')}</script>")
+
+    # equal-time grids
+    body.append("<h2>Equal-time images</h2>")
+    body.append(
+        f'<p class="note">Tonemapped at {ev:+g} EV (sRGB). Error maps: per-pixel relMSE, log '
+        f"scale from {T.fmt(lo)} (black) to {T.fmt(hi)} (yellow), the same for every image "
+        f'on this page: <img alt="colour bar" style="vertical-align:middle;width:200px;height:12px"'
+        f' src="{I.data_uri_png(I.colorbar_png(lo, hi))}"></p>'
+    )
+    ref_png = I.data_uri_png(I.tonemapped_png(ref, ev))
+    ncols = len(methods) + 1
+    cols = f"grid-template-columns: 5em repeat({ncols}, minmax(60px, 1fr))"
+    for b in budgets:
+        body.append(f"<h3>{e(b)} s</h3>")
+        body.append(f'<div class="grid" style="{cols}">')
+        body.append('<div class="rowlabel">image</div>')
+        body.append(
+            f'<figure><img alt="reference" src="{ref_png}"><figcaption>reference</figcaption>'
+            "</figure>"
+        )
+        for m in methods:
+            x = imgs[m].get(b)
+            if x is None:
+                body.append(f"<figure><figcaption>{e(m)}: missing</figcaption></figure>")
+                continue
+            rel = float(err[m][b].mean())
+            body.append(
+                f'<figure><img alt="{e(m)} at {e(b)} s" src="{I.data_uri_png(I.tonemapped_png(x, ev))}">'
+                f"<figcaption>{e(m)} · relMSE {T.fmt(rel)}</figcaption></figure>"
+            )
+        body.append('<div class="rowlabel">error</div><div></div>')
+        for m in methods:
+            em = err[m].get(b)
+            if em is None:
+                body.append("<div></div>")
+                continue
+            png = I.data_uri_png(I.png_bytes(I.false_colour(em, lo, hi)))
+            body.append(f'<figure><img alt="{e(m)} error at {e(b)} s" src="{png}"></figure>')
+        body.append("</div>")
+
+    # statistics
+    stats = tabs.get("stats")
+    if stats is not None and not stats.empty:
+        st = stats[stats.scene == scene].drop(columns=["scene"])
+        body.append("<h2>Render statistics</h2>")
+        body.append(
+            '<p class="note">Per run at its largest budget: render and load seconds from the '
+            "renderer's clock, wall time and peak memory (max RSS, MB) from Snakemake's "
+            "benchmark of the whole process.</p>"
+        )
+        body.append(T.frame_html(st, 4))
+    if not ss.empty:
+        body.append("<details><summary>All metrics (mean over seeds)</summary>")
+        cols_all = ["method", "budget", *[f"{m}_mean" for m in T.METRICS if f"{m}_mean" in ss]]
+        body.append(T.frame_html(ss[cols_all], 3))
+        body.append("</details>")
+
+    _write(out / f"scene-{scene}.html", _page(f"{scene} — {spec['title']}", "\n".join(body)))
+
+
+# --- index ------------------------------------------------------------------------------------
+
+
+def build_index(spec: dict[str, Any]) -> None:
+    out = Path(spec["reports"])
+    tabs = _read_tables(spec["tables"])
+    metric = spec["metric"]
+    factor = float(spec["factor"])
+    scenes: list[str] = spec["scenes"]
+    methods: list[str] = spec["methods"]
+    baseline = spec["baseline"]
+    colours = method_colours(methods)
+    summary, runs = tabs["summary"], tabs["runs"]
+    refs = {s: read_json(p) for s, p in spec["refs"].items()}
+    now = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+
+    body = [
+        _nav(scenes, None),
+        f"<h1>{e(spec['title'])}</h1>",
+        f'<p class="note">Study <b>{e(spec["study"])}</b>: {len(scenes)} scene(s), '
+        f"{len(methods)} method(s) ({e(', '.join(methods))}), budgets "
+        f"{e(', '.join(T.budget_label(b) for b in sorted(summary.budget.unique())))}, "
+        f"{int(runs.seed.nunique())} seed(s). Generated {now}. Tables as CSV and Markdown in "
+        '<a href="tables/">tables/</a>.</p>',
+    ]
+
+    # winners
+    best = T.best_methods(summary, metric)
+    body.append(f"<h2>Best method per scene and budget ({e(_metric_label(metric))})</h2>")
+    budgets = sorted(summary.budget.unique())
+    ok = summary.set_index(["scene", "method", "budget"])["ref_ok"]
+    win = ['<table class="overview"><thead><tr><th>scene</th>']
+    win += [f"<th>{e(T.budget_label(b))}</th>" for b in budgets]
+    win.append("</tr></thead><tbody>")
+    for s in scenes:
+        win.append(f'<tr><th class="scene"><a href="scene-{e(s)}.html">{e(s)}</a></th>')
+        for b in budgets:
+            r = best[(best.scene == s) & (best.budget == b)]
+            if r.empty:
+                win.append("<td></td>")
+                continue
+            m = r.method.iloc[0]
+            flag = "" if ok.get((s, m, b), True) else ' <span class="flag">⚠</span>'
+            win.append(f"<td>{e(m)} ({T.fmt(r.iloc[0, 3])}){flag}</td>")
+        win.append("</tr>")
+    win.append("</tbody></table>")
+    body.append("".join(win))
+
+    body.append(f"<h2>Overview: {e(_metric_label(metric))}</h2>")
+    body.append(_legend(metric, factor))
+    body.append(T.overview_html(summary, metric, link_scenes=True))
+    for m in T.METRICS:
+        if m != metric and f"{m}_mean" in summary:
+            body.append(f"<details><summary>{e(_metric_label(m))}</summary>")
+            body.append(T.overview_html(summary, m, link_scenes=True))
+            body.append("</details>")
+
+    # speed-up / time to error
+    tte = tabs.get("time_to_error")
+    if tte is not None and not tte.empty:
+        col = f"speedup_vs_{baseline}"
+        body.append(f"<h2>Time to reach the target error, and speed-up vs {e(baseline)}</h2>")
+        body.append(
+            f'<p class="note">Target per scene: {e(_metric_label(metric))} reached by '
+            f"{e(baseline)} at its largest budget (median final error if {e(baseline)} is not in "
+            "the study). Seconds of render time, interpolated log-log between budgets; "
+            "* = extrapolated from the fitted slope. Speed-up = baseline time / method time.</p>"
+        )
+        rows = ['<table class="data"><thead><tr><th>scene</th>']
+        rows += [f"<th>{e(m)}</th>" for m in methods]
+        rows.append("</tr></thead><tbody>")
+        for s in scenes:
+            rows.append(f'<tr><th class="scene">{e(s)}</th>')
+            for m in methods:
+                r = tte[(tte.scene == s) & (tte.method == m)]
+                if r.empty:
+                    rows.append("<td></td>")
+                    continue
+                r0 = r.iloc[0]
+                star = "*" if bool(r0.extrapolated) else ""
+                sp = r0.get(col, math.nan)
+                rows.append(
+                    f"<td>{T.fmt(r0.seconds)} s{star}<br><small>×{T.fmt(sp, 2)}</small></td>"
+                )
+            rows.append("</tr>")
+        rows.append("</tbody></table>")
+        body.append("".join(rows))
+
+    conv = tabs.get("convergence")
+    if conv is not None and not conv.empty:
+        c = conv[conv.metric == metric].pivot(index="scene", columns="method", values="slope")
+        c = c.reindex(columns=[m for m in methods if m in c.columns]).reset_index()
+        body.append(f"<h2>Convergence slopes ({e(_metric_label(metric))} vs time, log-log)</h2>")
+        body.append(T.frame_html(c, 3))
+
+    body.append("<h2>Convergence plots</h2>")
+    body.append('<div class="plots">')
+    for s in scenes:
+        rs = runs[runs.scene == s]
+        if rs.empty:
+            continue
+        svg = convergence_svg(rs, metric, s, colours, _ref_error_for(metric, refs.get(s, {})))
+        body.append(f'<figure><a href="scene-{e(s)}.html">{svg}</a></figure>')
+    body.append("</div>")
+
+    body.append("<h2>Reference quality</h2>")
+    rq = pd.DataFrame(
+        [
+            {
+                "scene": s,
+                "spp per half": (r.get("spp_per_half") or [None])[0],
+                "half-vs-half relMSE": r.get("halves_relmse"),
+                "reference relMSE (est.)": r.get("ref_relmse"),
+                "flagged cells": int(
+                    (~summary[summary.scene == s].ref_ok.astype(bool)).sum()
+                ),
+            }
+            for s, r in refs.items()
+        ]
+    )
+    body.append(
+        '<p class="note">The reference is the average of two independent Mitsuba renders; its '
+        "relMSE is estimated as a quarter of the relMSE between the halves. A cell is flagged "
+        f"when this is not {factor:g}x below the cell's relMSE.</p>"
+    )
+    body.append(T.frame_html(rq, 3))
+
+    _write(out / "index.html", _page(spec["title"], "\n".join(body)))

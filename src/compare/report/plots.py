@@ -1,0 +1,68 @@
+"""Convergence plots: log-log error vs render time, one line per method, as inline SVG."""
+
+from __future__ import annotations
+
+import io
+import math
+
+import matplotlib
+import numpy as np
+import pandas as pd
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+from ..convergence import fit_slope  # noqa: E402
+from ..tables import METRIC_LABELS  # noqa: E402
+
+plt.rcParams["svg.fonttype"] = "none"  # keep text as text: smaller, searchable
+
+
+def method_colours(methods: list[str]) -> dict[str, str]:
+    cmap = plt.get_cmap("tab10" if len(methods) <= 10 else "tab20")
+    return {m: matplotlib.colors.to_hex(cmap(i % cmap.N)) for i, m in enumerate(methods)}
+
+
+def convergence_svg(
+    runs: pd.DataFrame,
+    metric: str,
+    title: str,
+    colours: dict[str, str],
+    ref_error: float | None = None,
+) -> str:
+    """Mean error over seeds vs mean render time per method, min-max band over seeds,
+    fitted slope in the legend, and the reference's own error as a dashed line."""
+    fig, ax = plt.subplots(figsize=(6.4, 4.2), dpi=100)
+    for method, d in runs.groupby("method", sort=True):
+        t_all = d["render_seconds"].where(d["render_seconds"] > 0, d["budget"])
+        d = d.assign(t=t_all)
+        g = d.groupby("budget")
+        t = g["t"].mean()
+        mean, lo, hi = g[metric].mean(), g[metric].min(), g[metric].max()
+        fit = fit_slope(d["t"].to_numpy(), d[metric].to_numpy())
+        slope = f"{fit.slope:+.2f}" if math.isfinite(fit.slope) else "n/a"
+        c = colours.get(method, None)
+        ax.plot(t, mean, "o-", color=c, lw=1.6, ms=3.5, label=f"{method} (slope {slope})")
+        if d["seed"].nunique() > 1:
+            ax.fill_between(t, lo, hi, color=c, alpha=0.18, lw=0)
+    if ref_error is not None and math.isfinite(ref_error) and ref_error > 0:
+        ax.axhline(ref_error, color="0.3", ls="--", lw=1, label="reference's own error")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("render time [s]")
+    ax.set_ylabel(METRIC_LABELS.get(metric, metric))
+    ax.set_title(title, fontsize=11)
+    ax.grid(True, which="both", alpha=0.25)
+    ax.legend(fontsize=8, loc="best", framealpha=0.8)
+    budgets = np.sort(runs["budget"].unique())
+    if budgets.size:
+        ax.set_xticks(budgets)
+        ax.set_xticklabels([f"{b:g}" for b in budgets])
+        ax.minorticks_off()
+        ax.set_yscale("log")
+    fig.tight_layout()
+    buf = io.StringIO()
+    fig.savefig(buf, format="svg")
+    plt.close(fig)
+    svg = buf.getvalue()
+    return svg[svg.find("<svg") :]  # drop the XML prolog for inlining

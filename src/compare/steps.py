@@ -1,0 +1,120 @@
+"""Command-line entry points of the workflow jobs: ``python -m compare.steps <step> ...``.
+
+Thin adaptors: each parses its arguments and calls the library function that does the work.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+from pathlib import Path
+
+
+def _merge_reference(a: argparse.Namespace) -> None:
+    from .runs import merge_reference
+
+    info = merge_reference(a.half_a, a.half_b, a.out_exr, a.out_json)
+    print(
+        f"reference: half-vs-half relMSE {info['halves_relmse']:.4g}, "
+        f"estimated reference relMSE {info['ref_relmse']:.4g}"
+    )
+
+
+def _compare_run(a: argparse.Namespace) -> None:
+    from .runs import compare_run
+
+    budgets = [float(b) for b in a.budgets.split(",")]
+    df = compare_run(
+        a.snapshots,
+        budgets,
+        a.ref,
+        a.ref_json,
+        a.o,
+        scene=a.scene,
+        method=a.method,
+        seed=a.seed,
+        threads=a.threads,
+        ref_quality_factor=a.ref_factor,
+    )
+    print(df.to_string())
+
+
+_METRICS_PATH = re.compile(r"metrics/(?P<scene>[^/]+)/(?P<method>[^/]+)/s(?P<seed>\d+)\.csv$")
+
+
+def _tables(a: argparse.Namespace) -> None:
+    from .tables import load_runs, write_tables
+
+    bench = {}
+    for p in a.metrics:
+        m = _METRICS_PATH.search(Path(p).as_posix())
+        if m:
+            key = (m["scene"], m["method"], int(m["seed"]))
+            tsv = Path(a.results) / "benchmarks" / "render" / m["scene"] / m["method"]
+            bench[key] = tsv / f"s{m['seed']}.tsv"
+    runs = load_runs(a.metrics, bench)
+    tables = write_tables(runs, a.o, metric=a.metric, baseline=a.baseline)
+    print(tables["best"].to_string())
+
+
+def _report_scene(a: argparse.Namespace) -> None:
+    from .report.build import build_scene_page
+
+    build_scene_page(json.loads(a.spec))
+
+
+def _report_index(a: argparse.Namespace) -> None:
+    from .report.build import build_index
+
+    build_index(json.loads(a.spec))
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m compare.steps", description=__doc__)
+    sub = ap.add_subparsers(dest="step", required=True)
+
+    p = sub.add_parser("merge-reference", help="average two reference halves, record error")
+    p.add_argument("half_a")
+    p.add_argument("half_b")
+    p.add_argument("out_exr")
+    p.add_argument("out_json")
+    p.set_defaults(fn=_merge_reference)
+
+    p = sub.add_parser("compare-run", help="metrics of every snapshot of one run")
+    p.add_argument("snapshots", nargs="+")
+    p.add_argument("--scene", required=True)
+    p.add_argument("--method", required=True)
+    p.add_argument("--seed", type=int, required=True)
+    p.add_argument("--threads", type=int, required=True)
+    p.add_argument("--budgets", required=True, help="comma separated, one per snapshot")
+    p.add_argument("--ref", required=True)
+    p.add_argument("--ref-json", required=True)
+    p.add_argument("--ref-factor", type=float, default=10.0)
+    p.add_argument("-o", required=True)
+    p.set_defaults(fn=_compare_run)
+
+    p = sub.add_parser("tables", help="aggregate metrics CSVs into tables")
+    p.add_argument("metrics", nargs="+")
+    p.add_argument("--results", required=True, help="results folder (for benchmark files)")
+    p.add_argument("--metric", default="relmse")
+    p.add_argument("--baseline", default="pt")
+    p.add_argument("-o", required=True, help="output folder")
+    p.set_defaults(fn=_tables)
+
+    p = sub.add_parser("report-scene", help="one scene's report page (spec as JSON)")
+    p.add_argument("spec")
+    p.set_defaults(fn=_report_scene)
+
+    p = sub.add_parser("report-index", help="the report's index page (spec as JSON)")
+    p.add_argument("spec")
+    p.set_defaults(fn=_report_index)
+
+    a = ap.parse_args(argv)
+    a.fn(a)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,48 @@
+# Compare every snapshot of a run with the reference; aggregate all runs into tables.
+
+
+rule compare:
+    input:
+        snapshots=lambda w: snapshot_files(w.scene, w.method, w.seed),
+        ref=f"{R}/reference/{{scene}}/ref.exr",
+        ref_json=f"{R}/reference/{{scene}}/ref.json",
+    output:
+        f"{R}/metrics/{{scene}}/{{method}}/s{{seed}}.csv",
+    params:
+        budgets=",".join(PLAN.budget_tags),
+        threads=PLAN.threads,
+        factor=PLAN.ref_quality_factor,
+    log:
+        f"{R}/logs/compare/{{scene}}/{{method}}/s{{seed}}.log",
+    benchmark:
+        f"{R}/benchmarks/compare/{{scene}}/{{method}}/s{{seed}}.tsv"
+    shell:
+        "{PY} -m compare.steps compare-run --scene {wildcards.scene} --method {wildcards.method}"
+        " --seed {wildcards.seed} --threads {params.threads} --budgets {params.budgets}"
+        " --ref-factor {params.factor} --ref {input.ref:q} --ref-json {input.ref_json:q}"
+        " -o {output:q} {input.snapshots:q} > {log:q} 2>&1"
+
+
+rule tables:
+    input:
+        metrics=[metrics_file(*r) for r in all_runs()],
+        benchmarks=[bench_file(*r) for r in all_runs()],
+    output:
+        summary=f"{REP}/tables/summary.csv",
+        runs=f"{REP}/tables/runs.csv",
+        convergence=f"{REP}/tables/convergence.csv",
+        tte=f"{REP}/tables/time_to_error.csv",
+        stats=f"{REP}/tables/stats.csv",
+        overview=f"{REP}/tables/overview.md",
+    params:
+        out=f"{REP}/tables",
+        metric=PLAN.primary_metric,
+        baseline=PLAN.baseline,
+        results=R,
+    log:
+        f"{R}/logs/tables.log",
+    benchmark:
+        f"{R}/benchmarks/tables.tsv"
+    shell:
+        "{PY} -m compare.steps tables --results {params.results:q} --metric {params.metric}"
+        " --baseline {params.baseline} -o {params.out:q} {input.metrics:q} > {log:q} 2>&1"

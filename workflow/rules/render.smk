@@ -1,0 +1,31 @@
+# Timed renders: one run per scene x method x seed writes a snapshot at every time budget.
+# Budgets come from the renderer's own clock (sidecar render_seconds); `benchmark:` records
+# wall time and memory. Every run declares the same threads and holds the `timed_render`
+# resource, so timed renders never share the machine with each other.
+
+
+rule render:
+    input:
+        scene=scene_file,
+    output:
+        snapshots=[f"{R}/render/{{scene}}/{{method}}/s{{seed}}/run.t{t}.exr" for t in PLAN.budget_tags],
+        sidecars=[f"{R}/render/{{scene}}/{{method}}/s{{seed}}/run.t{t}.json" for t in PLAN.budget_tags],
+        final=f"{R}/render/{{scene}}/{{method}}/s{{seed}}/run.exr",
+        final_json=f"{R}/render/{{scene}}/{{method}}/s{{seed}}/run.json",
+    params:
+        scene=scene_arg,
+        sets=set_args,
+        snapshots=PLAN.snapshot_arg(),
+        extra=lambda w: " ".join(shlex.quote(a) for a in PLAN.method_args.get(w.method, ())),
+        pgi=PGI,
+    threads: PLAN.threads
+    resources:
+        timed_render=1,
+    log:
+        f"{R}/logs/render/{{scene}}/{{method}}/s{{seed}}.log",
+    benchmark:
+        f"{R}/benchmarks/render/{{scene}}/{{method}}/s{{seed}}.tsv"
+    shell:
+        "{params.pgi} render {params.scene:q} --method {wildcards.method} --seed {wildcards.seed}"
+        " --threads {threads} --snapshots {params.snapshots} {params.sets} {params.extra}"
+        " -o {output.final:q} > {log:q} 2>&1"
