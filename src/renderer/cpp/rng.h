@@ -23,9 +23,10 @@ struct Sampler {
     uint32_t dim = 0;
     Sampler() = default;
     explicit Sampler(uint64_t k) : key(k) {}
-    // Uniform in [0, 1) with 53 random bits.
+    // Uniform in [0, 1) with 53 random bits: SplitMix64 stepped to `dim`,
+    // from a starting point (the key) that is itself a hash.
     double next() {
-        uint64_t h = mix64(key ^ mix64(0x632be59bd9b4e019ull + dim++));
+        uint64_t h = mix64(key + 0x632be59bd9b4e019ull * uint64_t(++dim));
         return double(h >> 11) * 0x1.0p-53;
     }
     // A child stream, e.g. for a shadow ray, independent of this one.
