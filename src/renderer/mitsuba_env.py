@@ -1,0 +1,73 @@
+"""Import Mitsuba 3 with an RGB variant chosen for this machine.
+
+``llvm_ad_rgb`` is ~2-3x faster than ``scalar_rgb`` but needs LLVM >= 16 (Debian's default
+LLVM 15 crashes Dr.Jit). We look for a suitable ``libLLVM`` in the standard library folders and
+point ``DRJIT_LIBLLVM_PATH`` at it before Dr.Jit starts; without one we use ``scalar_rgb``.
+``PGI_MITSUBA_VARIANT`` overrides the choice.
+"""
+
+from __future__ import annotations
+
+import glob
+import os
+import re
+from types import ModuleType
+
+from renderer.errors import PgiError
+
+LIB_DIRS = (
+    "/usr/lib/x86_64-linux-gnu",
+    "/usr/lib/aarch64-linux-gnu",
+    "/usr/lib64",
+    "/usr/lib",
+    "/usr/local/lib",
+    "/usr/lib/llvm-*/lib",
+)
+MIN_LLVM = 16
+
+
+def find_libllvm() -> str | None:
+    """Path of the newest libLLVM with major version >= 16 in the standard folders, or None."""
+    best: tuple[int, str] | None = None
+    for d in LIB_DIRS:
+        for path in glob.glob(f"{d}/libLLVM-*.so*") + glob.glob(f"{d}/libLLVM.so.*"):
+            m = re.match(r"libLLVM(?:-|\.so\.)(\d+)", os.path.basename(path))
+            if m and int(m.group(1)) >= MIN_LLVM and (best is None or int(m.group(1)) > best[0]):
+                best = (int(m.group(1)), path)
+    return best[1] if best else None
+
+
+def import_mitsuba(variant: str | None = None) -> ModuleType:
+    """The ``mitsuba`` module with a variant set (see the module docstring for the choice)."""
+    variant = variant or os.environ.get("PGI_MITSUBA_VARIANT") or None
+    if variant is None and "DRJIT_LIBLLVM_PATH" not in os.environ:
+        lib = find_libllvm()
+        if lib:
+            os.environ["DRJIT_LIBLLVM_PATH"] = lib
+    import mitsuba as mi
+
+    if variant is not None:
+        if mi.variant() != variant:
+            try:
+                mi.set_variant(variant)
+            except Exception as e:
+                raise PgiError(f"cannot use Mitsuba variant {variant!r}: {e}") from e
+        return mi
+    if mi.variant() is None:
+        if "DRJIT_LIBLLVM_PATH" in os.environ and "llvm_ad_rgb" in mi.variants():
+            try:
+                mi.set_variant("llvm_ad_rgb")
+                return mi
+            except Exception:
+                pass
+        mi.set_variant("scalar_rgb")
+    return mi
+
+
+def set_threads(n: int) -> None:
+    """Number of worker threads Mitsuba renders with (Dr.Jit's thread pool, all variants)."""
+    import drjit as dr
+
+    if n < 1:
+        raise PgiError(f"thread count must be >= 1, got {n}")
+    dr.set_thread_count(n)

@@ -1,0 +1,626 @@
+"""Load and validate a scene file (YAML) into the resolved :class:`Scene`.
+
+The format is documented in docs/scene-format.md. Every user mistake raises one
+:class:`PgiError` whose message names the file, the key path (``shapes[2].material``) and what
+was expected.
+
+Loading happens in four steps: read the file and its ``include`` files, merge them (remembering
+which file each part came from, for messages and relative paths), apply ``key.path=value``
+overrides, then validate and resolve into model objects.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+from typing import Any, NoReturn
+
+import numpy as np
+import yaml
+
+from renderer.errors import PgiError
+from renderer.scene import primitives
+from renderer.scene import transform as xf
+from renderer.scene.model import (
+    RGB,
+    Camera,
+    DirectionalLight,
+    Film,
+    Integrator,
+    Light,
+    Material,
+    Medium,
+    Phase,
+    PointLight,
+    Scene,
+    Shape,
+    SpotLight,
+)
+
+SCENE_FILE = "scene.yaml"
+REPO_ROOT = Path(__file__).resolve().parents[3]  # src/renderer/scene/loader.py -> repo
+
+TOP_KEYS = {
+    "name", "description", "stresses", "expected_winners", "include",
+    "camera", "film", "integrator", "materials", "media", "shapes", "lights",
+}  # fmt: skip
+INCLUDABLE = {"camera", "film", "integrator", "materials", "media", "shapes", "lights"}
+FOV_AXES = ("x", "y", "diagonal", "smaller", "larger")
+MESH_SUFFIXES = (".ply", ".obj")
+
+KeyPath = tuple[str | int, ...]
+
+
+# --------------------------------------------------------------------------- finding the file
+
+
+def find_scene_file(path: str | Path) -> Path:
+    """The scene file for ``path``: a scene.yaml, its folder, or a bare name under scenes/."""
+    p = Path(path)
+    if p.is_file():
+        return p
+    if p.is_dir():
+        if (p / SCENE_FILE).is_file():
+            return p / SCENE_FILE
+        raise PgiError(f"{p}: no {SCENE_FILE} in this folder")
+    candidates = [Path.cwd() / "scenes" / p / SCENE_FILE, REPO_ROOT / "scenes" / p / SCENE_FILE]
+    if len(p.parts) == 1 and not p.suffix:
+        for c in candidates:
+            if c.is_file():
+                return c
+        looked = ", ".join(str(c.parent.parent) for c in candidates)
+        raise PgiError(f"scene {str(path)!r} not found (looked in {looked})")
+    raise PgiError(f"{p}: scene file not found")
+
+
+# --------------------------------------------------------------------------- reading YAML
+
+
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """SafeLoader that rejects duplicate mapping keys instead of keeping the last one."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict:
+        seen = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)
+            if key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"duplicate key {key!r}", key_node.start_mark
+                )
+            seen.add(key)
+        return super().construct_mapping(node, deep=deep)
+
+
+def _read_yaml(path: Path) -> dict:
+    try:
+        text = path.read_text()
+    except OSError as e:
+        raise PgiError(f"{path}: cannot read: {e.strerror}") from e
+    try:
+        doc = yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 (a SafeLoader subclass)
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f"{path}:{mark.line + 1}" if mark else str(path)
+        problem = getattr(e, "problem", None) or str(e).splitlines()[0]
+        raise PgiError(f"{where}: invalid YAML: {problem}") from e
+    if not isinstance(doc, dict):
+        raise PgiError(f"{path}: expected a mapping of scene keys at the top level")
+    return doc
+
+
+# --------------------------------------------------------------------------- key paths, origins
+
+
+def format_path(path: Sequence[str | int]) -> str:
+    out = ""
+    for k in path:
+        out += f"[{k}]" if isinstance(k, int) else (f".{k}" if out else str(k))
+    return out or "(top level)"
+
+
+class _Origins:
+    """Which file (and which key path inside it) each part of the merged document came from."""
+
+    def __init__(self, main: Path) -> None:
+        self.main = main
+        self.parts: dict[KeyPath, tuple[Path, KeyPath, str]] = {}
+
+    def add(self, merged: KeyPath, file: Path, local: KeyPath, note: str = "") -> None:
+        self.parts[merged] = (file, local, note)
+
+    def locate(self, path: KeyPath) -> tuple[Path, KeyPath, str]:
+        for n in range(len(path), 0, -1):
+            if path[:n] in self.parts:
+                file, local, note = self.parts[path[:n]]
+                return file, local + path[n:], note
+        return self.main, path, ""
+
+    def file(self, path: KeyPath) -> Path:
+        return self.locate(path)[0]
+
+    def fail(self, path: KeyPath, msg: str) -> NoReturn:
+        file, local, note = self.locate(path)
+        raise PgiError(f"{file}{note}: {format_path(local)}: {msg}")
+
+
+def _merge_includes(main: Path, doc: dict, origins: _Origins) -> dict:
+    """Merge the ``include`` files of ``doc`` under it: ``doc``'s camera/film/integrator replace
+    the included ones, materials/media are united by name (a name may be defined once),
+    shapes/lights are concatenated, included ones first."""
+    inc = doc.pop("include", None)
+    if inc is None:
+        return doc
+    if isinstance(inc, str):
+        inc = [inc]
+    if not isinstance(inc, list) or not all(isinstance(i, str) for i in inc):
+        origins.fail(("include",), "expected a file path or a list of file paths")
+    sources = []
+    for n, name in enumerate(inc):
+        file = main.parent / name
+        if not file.is_file():
+            origins.fail(("include", n), f"included file not found: {file}")
+        sources.append((file, _read_yaml(file)))
+    sources.append((main, doc))
+    merged: dict[str, Any] = {}
+    for file, part in sources:
+        for key, value in part.items():
+            if file != main and key not in INCLUDABLE:
+                allowed = ", ".join(sorted(INCLUDABLE))
+                raise PgiError(
+                    f"{file}: {key}: not allowed in an included file (allowed: {allowed})"
+                )
+            target = merged.get(key)
+            if (
+                key in ("materials", "media")
+                and isinstance(value, dict)
+                and isinstance(target, dict)
+            ):
+                for name, item in value.items():
+                    if name in target:
+                        raise PgiError(f"{file}: {key}.{name}: already defined in an included file")
+                    target[name] = item
+                    origins.add((key, name), file, (key, name))
+            elif (
+                key in ("shapes", "lights") and isinstance(value, list) and isinstance(target, list)
+            ):
+                for local, item in enumerate(value):
+                    origins.add((key, len(target)), file, (key, local))
+                    target.append(item)
+            else:
+                merged[key] = value
+                origins.add((key,), file, (key,))
+    return merged
+
+
+_KEY = r"[^.\[\]\s=]+"
+_OVERRIDE_PATH = re.compile(rf"{_KEY}(\[\d+\])*(\.{_KEY}(\[\d+\])*)*")
+
+
+def _apply_override(doc: dict, text: str, origins: _Origins) -> None:
+    """Apply one ``key.path=value`` override (value parsed as YAML; ``shapes[2].x`` indexes lists).
+    Missing intermediate mappings are created; list items must exist."""
+    key, sep, raw = text.partition("=")
+    key = key.strip()
+    if not sep or not _OVERRIDE_PATH.fullmatch(key):
+        raise PgiError(f"override {text!r}: expected key.path=value, e.g. film.width=64")
+    tokens: list[str | int] = [
+        int(m.group(2)) if m.group(2) else m.group(1)
+        for m in re.finditer(rf"({_KEY})|\[(\d+)\]", key)
+    ]
+    try:
+        value = yaml.safe_load(raw)
+    except yaml.YAMLError as e:
+        raise PgiError(f"override {text!r}: value is not valid YAML") from e
+    node: Any = doc
+    for n, tok in enumerate(tokens):
+        last = n == len(tokens) - 1
+        if isinstance(node, dict) and isinstance(tok, str):
+            if last:
+                node[tok] = value
+            else:
+                node = node.setdefault(tok, {})
+        elif isinstance(node, list) and isinstance(tok, int) and tok < len(node):
+            if last:
+                node[tok] = value
+            else:
+                node = node[tok]
+        else:
+            missing = format_path(tokens[: n + 1])
+            raise PgiError(f"override {text!r}: {missing} does not exist in the scene")
+    origins.add(tuple(tokens), origins.main, tuple(tokens), f" (override {text!r})")
+
+
+# --------------------------------------------------------------------------- validation
+
+
+def _describe(v: Any) -> str:
+    r = repr(v)
+    return r if len(r) <= 40 else r[:37] + "..."
+
+
+class _Validator:
+    def __init__(self, origins: _Origins) -> None:
+        self.o = origins
+
+    def fail(self, path: KeyPath, msg: str) -> NoReturn:
+        self.o.fail(path, msg)
+
+    def mapping(
+        self, v: Any, path: KeyPath, required: Iterable[str] = (), optional: Iterable[str] = ()
+    ) -> dict:
+        if not isinstance(v, dict):
+            self.fail(path, f"expected a mapping, got {_describe(v)}")
+        allowed = set(required) | set(optional)
+        for k in v:
+            if k not in allowed:
+                self.fail(
+                    path + (str(k),), f"unknown key (expected one of: {', '.join(sorted(allowed))})"
+                )
+        for k in required:
+            if k not in v:
+                self.fail(path + (k,), "missing required key")
+        return v
+
+    def kind(self, d: Any, path: KeyPath, choices: Sequence[str]) -> str:
+        """The ``type`` of a mapping, one of ``choices`` (YAML null reads as "null")."""
+        if not isinstance(d, dict):
+            self.fail(
+                path, f"expected a mapping with a type ({', '.join(choices)}), got {_describe(d)}"
+            )
+        if "type" not in d:
+            self.fail(path + ("type",), f"missing required key (one of: {', '.join(choices)})")
+        return self.string("null" if d["type"] is None else d["type"], path + ("type",), choices)
+
+    def table(self, doc: dict, key: str) -> dict[str, Any]:
+        """A top-level name -> definition section (absent or empty = no entries)."""
+        t = doc.get(key) or {}
+        if not isinstance(t, dict):
+            self.fail((key,), f"expected a mapping of name -> definition, got {_describe(t)}")
+        for name in t:
+            if not isinstance(name, str):
+                self.fail((key, str(name)), f"expected a name (string), got {_describe(name)}")
+        return t
+
+    def number(
+        self, v: Any, path: KeyPath, lo: float | None = None, hi: float | None = None,
+        lo_open: bool = False, hi_open: bool = False,
+    ) -> float:  # fmt: skip
+        ok = isinstance(v, int | float) and not isinstance(v, bool) and np.isfinite(v)
+        if ok and lo is not None:
+            ok = v > lo if lo_open else v >= lo
+        if ok and hi is not None:
+            ok = v < hi if hi_open else v <= hi
+        if not ok:
+            rng = []
+            if lo is not None:
+                rng.append(f"{'>' if lo_open else '>='} {lo:g}")
+            if hi is not None:
+                rng.append(f"{'<' if hi_open else '<='} {hi:g}")
+            self.fail(
+                path,
+                f"expected a number{' ' + ' and '.join(rng) if rng else ''}, got {_describe(v)}",
+            )
+        return float(v)
+
+    def integer(self, v: Any, path: KeyPath, lo: int, hi: int | None = None) -> int:
+        if not isinstance(v, int) or isinstance(v, bool) or v < lo or (hi is not None and v > hi):
+            rng = f">= {lo}" + (f" and <= {hi}" if hi is not None else "")
+            self.fail(path, f"expected an integer {rng}, got {_describe(v)}")
+        return v
+
+    def string(self, v: Any, path: KeyPath, choices: Sequence[str] | None = None) -> str:
+        if not isinstance(v, str) or (choices is not None and v not in choices):
+            want = f"one of: {', '.join(choices)}" if choices else "a string"
+            self.fail(path, f"expected {want}, got {_describe(v)}")
+        return v
+
+    def strings(self, v: Any, path: KeyPath) -> list[str]:
+        if not isinstance(v, list) or not all(isinstance(s, str) for s in v):
+            self.fail(path, f"expected a list of strings, got {_describe(v)}")
+        return list(v)
+
+    def vec3(self, v: Any, path: KeyPath, nonzero: bool = False) -> np.ndarray:
+        if not isinstance(v, list) or len(v) != 3:
+            self.fail(path, f"expected a list of 3 numbers [x, y, z], got {_describe(v)}")
+        a = np.array([self.number(x, path + (i,)) for i, x in enumerate(v)])
+        if nonzero and not np.any(a):
+            self.fail(path, "expected a non-zero vector")
+        return a
+
+    def rgb(self, v: Any, path: KeyPath, hi: float | None = None) -> RGB:
+        """A colour: one number (grey) or [r, g, b], each >= 0 (and <= hi if given)."""
+        if isinstance(v, list):
+            if len(v) != 3:
+                self.fail(
+                    path, f"expected a number or a list of 3 numbers [r, g, b], got {_describe(v)}"
+                )
+            r, g, b = (self.number(x, path + (i,), lo=0, hi=hi) for i, x in enumerate(v))
+            return (r, g, b)
+        x = self.number(v, path, lo=0, hi=hi)
+        return (x, x, x)
+
+    def name_ref(self, v: Any, path: KeyPath, table: dict, what: str) -> str:
+        name = self.string(v, path)
+        if name not in table:
+            known = ", ".join(sorted(table)) or "none defined"
+            self.fail(path, f"unknown {what} {name!r} (defined: {known})")
+        return name
+
+    def transform(self, v: Any, path: KeyPath) -> np.ndarray:
+        if not isinstance(v, list):
+            self.fail(
+                path,
+                f"expected a list of ops (scale, rotate, translate, matrix), got {_describe(v)}",
+            )
+        m = np.eye(4)
+        for i, op in enumerate(v):
+            p = path + (i,)
+            if not isinstance(op, dict) or len(op) != 1:
+                self.fail(
+                    p, "expected one op: {scale: ..}, {rotate: ..}, {translate: ..} or {matrix: ..}"
+                )
+            ((kind, arg),) = op.items()
+            p = p + (kind,)
+            if kind == "scale":
+                s = self.vec3(arg, p) if isinstance(arg, list) else np.full(3, self.number(arg, p))
+                step = xf.scale(s)
+            elif kind == "rotate":
+                r = self.mapping(arg, p, required=("axis", "angle"))
+                step = xf.rotate(self.vec3(r["axis"], p + ("axis",), nonzero=True),
+                                 self.number(r["angle"], p + ("angle",)))  # fmt: skip
+            elif kind == "translate":
+                step = xf.translate(self.vec3(arg, p))
+            elif kind == "matrix":
+                if (
+                    not isinstance(arg, list)
+                    or len(arg) != 4
+                    or not all(isinstance(row, list) and len(row) == 4 for row in arg)
+                ):
+                    self.fail(p, "expected 4 rows of 4 numbers")
+                step = np.array([[self.number(x, p + (r, c)) for c, x in enumerate(row)]
+                                 for r, row in enumerate(arg)])  # fmt: skip
+                if not np.array_equal(step[3], [0, 0, 0, 1]):
+                    self.fail(p, "expected an affine matrix (last row 0 0 0 1)")
+            else:
+                self.fail(p, "unknown transform op (expected scale, rotate, translate or matrix)")
+            m = step @ m
+        return m
+
+
+# --------------------------------------------------------------------------- sections
+
+
+def _camera(val: _Validator, d: Any) -> Camera:
+    p: KeyPath = ("camera",)
+    d = val.mapping(
+        d, p, required=("origin", "target", "up", "fov"), optional=("fov_axis", "medium")
+    )
+    origin, target = val.vec3(d["origin"], p + ("origin",)), val.vec3(d["target"], p + ("target",))
+    up = val.vec3(d["up"], p + ("up",), nonzero=True)
+    view = target - origin
+    if not np.any(view):
+        val.fail(p + ("target",), "equals camera.origin, so the view direction is undefined")
+    if np.linalg.norm(np.cross(view, up)) <= 1e-9 * np.linalg.norm(view) * np.linalg.norm(up):
+        val.fail(p + ("up",), "is parallel to the view direction (target - origin)")
+    return Camera(
+        origin=origin, target=target, up=up,
+        fov=val.number(d["fov"], p + ("fov",), lo=0, hi=180, lo_open=True, hi_open=True),
+        fov_axis=val.string(d.get("fov_axis", "x"), p + ("fov_axis",), FOV_AXES),
+        medium=d.get("medium"),
+    )  # fmt: skip
+
+
+def _material(val: _Validator, name: str, d: Any) -> Material:
+    p: KeyPath = ("materials", name)
+    kind = val.kind(d, p, ("diffuse", "mirror", "dielectric", "null"))
+    extra = {"diffuse": ("reflectance",), "dielectric": ("ior",)}.get(kind, ())
+    val.mapping(d, p, required=("type",), optional=extra)
+    if kind == "diffuse":
+        return Material(
+            name, kind, reflectance=val.rgb(d.get("reflectance", 0.5), p + ("reflectance",), hi=1)
+        )
+    if kind == "dielectric":
+        return Material(
+            name, kind, ior=val.number(d.get("ior", 1.5), p + ("ior",), lo=0, lo_open=True)
+        )
+    return Material(name, kind)
+
+
+def _phase(val: _Validator, d: Any, p: KeyPath) -> Phase:
+    kind = val.kind(d, p, ("isotropic", "hg"))
+    if kind == "isotropic":
+        val.mapping(d, p, required=("type",))
+        return Phase("isotropic")
+    val.mapping(d, p, required=("type", "g"))
+    return Phase("hg", g=val.number(d["g"], p + ("g",), lo=-1, hi=1, lo_open=True, hi_open=True))
+
+
+def _load_density(val: _Validator, v: Any, p: KeyPath) -> tuple[np.ndarray, Path]:
+    file = val.o.file(p).parent / val.string(v, p)
+    if not file.is_file():
+        val.fail(p, f"density file not found: {file}")
+    try:
+        a = np.load(file, allow_pickle=False)
+    except (OSError, ValueError) as e:
+        val.fail(p, f"cannot read {file} as a .npy array: {e}")
+    if not isinstance(a, np.ndarray) or a.ndim != 3 or a.dtype.kind not in "fiu" or 0 in a.shape:
+        val.fail(p, f"{file}: expected a 3-D numeric array indexed [x, y, z], got {_describe(a)}")
+    if not np.all(np.isfinite(a)):
+        val.fail(p, f"{file}: density has non-finite values")
+    if a.min() < 0:
+        idx = tuple(int(i) for i in np.unravel_index(np.argmin(a), a.shape))
+        val.fail(p, f"{file}: density must be >= 0, got {a.min():g} at [x, y, z] = {list(idx)}")
+    return np.ascontiguousarray(a, dtype=np.float32), file
+
+
+def _medium(val: _Validator, name: str, d: Any) -> Medium:
+    p: KeyPath = ("media", name)
+    kind = val.kind(d, p, ("homogeneous", "grid"))
+    common = ("albedo", "scale", "phase")
+    if kind == "homogeneous":
+        val.mapping(d, p, required=("type", "sigma_t", "albedo"), optional=common)
+    else:
+        val.mapping(
+            d, p, required=("type", "density", "albedo"), optional=common + ("sigma_t", "transform")
+        )
+    sigma_t = val.rgb(d.get("sigma_t", 1.0), p + ("sigma_t",))
+    albedo = val.rgb(d["albedo"], p + ("albedo",), hi=1)
+    scale = val.number(d.get("scale", 1.0), p + ("scale",), lo=0)
+    phase = _phase(val, d["phase"], p + ("phase",)) if "phase" in d else Phase()
+    if kind == "homogeneous":
+        return Medium(name, kind, sigma_t, albedo, scale, phase)
+    density, source = _load_density(val, d["density"], p + ("density",))
+    to_world = val.transform(d.get("transform", []), p + ("transform",))
+    if abs(np.linalg.det(to_world[:3, :3])) < 1e-12:
+        val.fail(p + ("transform",), "is singular: the grid's box would have no volume")
+    return Medium(name, kind, sigma_t, albedo, scale, phase, density, to_world, source)
+
+
+def _mesh_file(val: _Validator, v: Any, p: KeyPath) -> tuple[np.ndarray, np.ndarray]:
+    """Triangles of a .ply/.obj file as Mitsuba's own loader reads them."""
+    file = val.o.file(p).parent / val.string(v, p)
+    if file.suffix.lower() not in MESH_SUFFIXES:
+        val.fail(p, f"expected a .ply or .obj file, got {file.name!r}")
+    if not file.is_file():
+        val.fail(p, f"mesh file not found: {file}")
+    from renderer.mitsuba_env import import_mitsuba
+
+    mi = import_mitsuba()
+    try:
+        mesh = mi.load_dict(
+            {"type": file.suffix.lower()[1:], "filename": str(file), "face_normals": True}
+        )
+    except Exception as e:  # Mitsuba raises RuntimeError with its parser's message
+        val.fail(p, f"cannot load {file}: {str(e).splitlines()[-1]}")
+    v = np.array(mesh.vertex_positions_buffer(), dtype=np.float64).reshape(-1, 3)
+    f = np.array(mesh.faces_buffer(), dtype=np.int64).reshape(-1, 3).astype(np.int32)
+    return v, f
+
+
+def _shape(val: _Validator, i: int, d: Any, materials: dict, media: dict) -> Shape:
+    p: KeyPath = ("shapes", i)
+    kind = val.kind(d, p, ("rectangle", "cube", "sphere", "mesh"))
+    common = ("name", "transform", "emission", "interior", "exterior")
+    extra = {"sphere": ("subdivisions",), "mesh": ("file",)}.get(kind, ())
+    val.mapping(d, p, required=("type", "material") + (("file",) if kind == "mesh" else ()),
+                optional=common + extra)  # fmt: skip
+    if kind == "rectangle":
+        v, f = primitives.rectangle()
+    elif kind == "cube":
+        v, f = primitives.cube()
+    elif kind == "sphere":
+        v, f = primitives.icosphere(
+            val.integer(d.get("subdivisions", 3), p + ("subdivisions",), 0, 7)
+        )
+    else:
+        v, f = _mesh_file(val, d["file"], p + ("file",))
+    m = val.transform(d.get("transform", []), p + ("transform",))
+    v = xf.apply_points(m, v)
+    if np.linalg.det(m[:3, :3]) < 0:  # a mirroring transform: keep normals on the stated side
+        f = f[:, ::-1].copy()
+    emission = val.rgb(d["emission"], p + ("emission",)) if "emission" in d else None
+    if len(f) == 0 or primitives.area(v, f) <= 0:
+        what = "an emitter needs area" if emission else "check its transform"
+        val.fail(p, f"shape has zero surface area ({what})")
+
+    def medium_ref(key: str) -> str | None:
+        return None if d.get(key) is None else val.name_ref(d[key], p + (key,), media, "medium")
+
+    return Shape(
+        name=val.string(d.get("name", f"{kind}{i}"), p + ("name",)),
+        vertices=v, faces=f,
+        material=val.name_ref(d["material"], p + ("material",), materials, "material"),
+        emission=emission, interior=medium_ref("interior"), exterior=medium_ref("exterior"),
+    )  # fmt: skip
+
+
+def _light(val: _Validator, i: int, d: Any) -> Light:
+    p: KeyPath = ("lights", i)
+    kind = val.kind(d, p, ("point", "spot", "directional"))
+    if kind == "point":
+        val.mapping(d, p, required=("type", "position", "intensity"))
+        return PointLight(
+            val.vec3(d["position"], p + ("position",)), val.rgb(d["intensity"], p + ("intensity",))
+        )
+    if kind == "directional":
+        val.mapping(d, p, required=("type", "direction", "irradiance"))
+        direction = val.vec3(d["direction"], p + ("direction",), nonzero=True)
+        return DirectionalLight(
+            direction / np.linalg.norm(direction), val.rgb(d["irradiance"], p + ("irradiance",))
+        )
+    val.mapping(
+        d,
+        p,
+        required=("type", "position", "target", "intensity"),
+        optional=("cutoff_angle", "beam_width"),
+    )
+    pos, target = val.vec3(d["position"], p + ("position",)), val.vec3(d["target"], p + ("target",))
+    if not np.any(target - pos):
+        val.fail(p + ("target",), "equals the light's position, so its axis is undefined")
+    cutoff = val.number(
+        d.get("cutoff_angle", 20.0), p + ("cutoff_angle",), lo=0, hi=90, lo_open=True
+    )
+    beam = val.number(
+        d.get("beam_width", cutoff * 0.75), p + ("beam_width",), lo=0, hi=cutoff, lo_open=True
+    )
+    return SpotLight(pos, target, val.rgb(d["intensity"], p + ("intensity",)), cutoff, beam)
+
+
+# --------------------------------------------------------------------------- entry point
+
+
+def load_scene(path: str | Path, overrides: Sequence[str] = ()) -> Scene:
+    """Load, validate and resolve a scene. ``path``: scene.yaml, its folder, or a scene name.
+
+    ``overrides`` are ``key.path=value`` strings (value parsed as YAML) applied after includes
+    and before validation, e.g. ``film.width=64`` or ``media.fog.scale=2``.
+    """
+    file = find_scene_file(path)
+    origins = _Origins(file)
+    doc = _merge_includes(file, _read_yaml(file), origins)
+    for text in overrides:
+        _apply_override(doc, text, origins)
+    val = _Validator(origins)
+    val.mapping(doc, (), required=("camera", "film", "shapes"), optional=TOP_KEYS)
+
+    materials = {k: _material(val, k, v) for k, v in val.table(doc, "materials").items()}
+    media = {k: _medium(val, k, v) for k, v in val.table(doc, "media").items()}
+
+    camera = _camera(val, doc["camera"])
+    if camera.medium is not None:
+        val.name_ref(camera.medium, ("camera", "medium"), media, "medium")
+    film_doc = val.mapping(doc["film"], ("film",), required=("width", "height"))
+    film = Film(val.integer(film_doc["width"], ("film", "width"), 1),
+                val.integer(film_doc["height"], ("film", "height"), 1))  # fmt: skip
+    integ = val.mapping(
+        doc.get("integrator") or {}, ("integrator",), optional=("max_depth", "rr_depth")
+    )
+    integrator = Integrator(
+        max_depth=val.integer(integ.get("max_depth", -1), ("integrator", "max_depth"), -1),
+        rr_depth=val.integer(integ.get("rr_depth", 5), ("integrator", "rr_depth"), 1),
+    )
+
+    shapes_doc = doc["shapes"]
+    if not isinstance(shapes_doc, list) or not shapes_doc:
+        val.fail(("shapes",), f"expected a non-empty list of shapes, got {_describe(shapes_doc)}")
+    shapes = [_shape(val, i, d, materials, media) for i, d in enumerate(shapes_doc)]
+    names = [s.name for s in shapes]
+    for i, n in enumerate(names):
+        if n in names[:i]:
+            val.fail(("shapes", i, "name"), f"duplicate shape name {n!r}")
+    lights_doc = doc.get("lights") or []
+    if not isinstance(lights_doc, list):
+        val.fail(("lights",), f"expected a list of lights, got {_describe(lights_doc)}")
+    lights = [_light(val, i, d) for i, d in enumerate(lights_doc)]
+    if not lights and not any(s.emission for s in shapes):
+        val.fail(("lights",), "the scene has no light: add a light or give a shape an emission")
+
+    return Scene(
+        name=val.string(doc.get("name", file.parent.name), ("name",)),
+        path=file, camera=camera, film=film, integrator=integrator,
+        materials=materials, media=media, shapes=shapes, lights=lights,
+        description=val.string(doc.get("description", ""), ("description",)).strip(),
+        stresses=val.strings(doc.get("stresses", []), ("stresses",)),
+        expected_winners=val.strings(doc.get("expected_winners", []), ("expected_winners",)),
+    )  # fmt: skip

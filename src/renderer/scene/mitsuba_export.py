@@ -1,0 +1,206 @@
+"""Translate a resolved :class:`Scene` into a Mitsuba 3 scene dict (for ``mi.load_dict``).
+
+Both renderers must see the same scene, so every shape goes to Mitsuba as a triangle mesh
+built from our own numpy triangles (flat face normals, no vertex normals), and every default
+Mitsuba would otherwise pick is set explicitly (box film filter, HG g, dielectric ext_ior,
+near clip). The dict contains already-built Mitsuba objects (meshes, media, BSDFs) so that one
+medium instance is shared by the sensor and the shapes that bound it; build it with the
+variant :func:`renderer.mitsuba_env.import_mitsuba` selects, and load it in the same variant.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from renderer.errors import PgiError
+from renderer.mitsuba_env import import_mitsuba
+from renderer.scene.model import (
+    RGB,
+    DirectionalLight,
+    Light,
+    Material,
+    Medium,
+    Phase,
+    PointLight,
+    Scene,
+    Shape,
+    SpotLight,
+)
+
+# Mitsuba starts camera rays at a near plane (default 0.01), skipping that segment and its
+# medium attenuation; a tiny near plane makes rays start (almost) at the camera as ours do.
+NEAR_CLIP = 1e-4
+FAR_CLIP = 1e5
+
+
+def _rgb(c: RGB) -> dict[str, Any]:
+    return {"type": "rgb", "value": [float(x) for x in c]}
+
+
+def _const_volume(c: RGB) -> dict[str, Any]:
+    # constvolume parses its rgb without the [0, 1] reflectance check, so sigma_t may exceed 1
+    return {"type": "constvolume", "value": _rgb(c)}
+
+
+def _bsdf(m: Material) -> dict[str, Any]:
+    if m.type == "diffuse":
+        return {"type": "diffuse", "reflectance": _rgb(m.reflectance)}
+    if m.type == "mirror":  # conductor with material "none": reflectance exactly 1
+        return {"type": "conductor", "material": "none"}
+    if m.type == "dielectric":
+        return {"type": "dielectric", "int_ior": float(m.ior), "ext_ior": 1.0}
+    if m.type == "null":
+        return {"type": "null"}
+    raise PgiError(f"material {m.name!r}: type {m.type!r} has no Mitsuba equivalent")
+
+
+def _phase(p: Phase) -> dict[str, Any]:
+    if p.type == "isotropic":
+        return {"type": "isotropic"}
+    if p.type == "hg":
+        return {"type": "hg", "g": float(p.g)}
+    raise PgiError(f"phase function {p.type!r} has no Mitsuba equivalent here")
+
+
+def grid_data(m: Medium) -> np.ndarray:
+    """sigma_t * density as Mitsuba's gridvolume wants it: float32 (Z, Y, X, C), C = 1 or 3."""
+    assert m.density is not None
+    zyx = np.transpose(m.density, (2, 1, 0)).astype(np.float32)
+    sigma_t = np.asarray(m.sigma_t, dtype=np.float32)
+    if np.all(sigma_t == sigma_t[0]):
+        return np.ascontiguousarray((zyx * sigma_t[0])[..., None])
+    return np.ascontiguousarray(zyx[..., None] * sigma_t)
+
+
+def _medium(mi: Any, m: Medium) -> dict[str, Any]:
+    common = {"albedo": _const_volume(m.albedo), "scale": float(m.scale), "phase": _phase(m.phase)}
+    if m.type == "homogeneous":
+        return {"type": "homogeneous", "sigma_t": _const_volume(m.sigma_t), **common}
+    if m.type != "grid":
+        raise PgiError(f"medium {m.name!r}: type {m.type!r} has no Mitsuba equivalent")
+    assert m.to_world is not None
+    lin = m.to_world[:3, :3]
+    if np.any(lin - np.diag(np.diag(lin))):
+        # Mitsuba bounds a grid by the axis-aligned box of its transformed cube and extends
+        # edge values into the part of that box outside the cube: only axis-aligned grids match.
+        raise PgiError(
+            f"{m.source}: medium {m.name!r}: Mitsuba supports only axis-aligned grids "
+            "(transform with scale and translate, no rotation)"
+        )
+    grid = {
+        "type": "gridvolume",
+        "grid": mi.VolumeGrid(grid_data(m)),
+        "to_world": mi.ScalarTransform4f(m.to_world.tolist()),
+        "filter_type": "trilinear",
+        "wrap_mode": "clamp",
+    }
+    return {"type": "heterogeneous", "sigma_t": grid, **common}
+
+
+def _mesh(mi: Any, s: Shape, bsdfs: dict[str, Any], media: dict[str, Any]) -> Any:
+    props = mi.Properties()
+    props["bsdf"] = bsdfs[s.material]
+    if s.emission is not None:
+        props["emitter"] = mi.load_dict({"type": "area", "radiance": _rgb(s.emission)})
+    if s.interior is not None:
+        props["interior"] = media[s.interior]
+    if s.exterior is not None:
+        props["exterior"] = media[s.exterior]
+    mesh = mi.Mesh(
+        s.name,
+        vertex_count=len(s.vertices),
+        face_count=len(s.faces),
+        props=props,
+        has_vertex_normals=False,
+        has_vertex_texcoords=False,
+    )
+    params = mi.traverse(mesh)
+    params["vertex_positions"] = mi.Float(np.ravel(s.vertices.astype(np.float32)))
+    params["faces"] = mi.UInt32(np.ravel(s.faces.astype(np.uint32)))
+    params.update()
+    return mesh
+
+
+def _look_at(mi: Any, origin: np.ndarray, target: np.ndarray, up: np.ndarray) -> Any:
+    return mi.ScalarTransform4f().look_at(
+        origin=[float(x) for x in origin],
+        target=[float(x) for x in target],
+        up=[float(x) for x in up],
+    )
+
+
+def _light(mi: Any, light: Light) -> dict[str, Any]:
+    if isinstance(light, PointLight):
+        return {
+            "type": "point",
+            "position": [float(x) for x in light.position],
+            "intensity": _rgb(light.intensity),
+        }
+    if isinstance(light, SpotLight):
+        axis = light.target - light.position
+        up = np.eye(3)[np.argmin(np.abs(axis))]  # any vector not parallel to the axis
+        return {
+            "type": "spot",
+            "to_world": _look_at(mi, light.position, light.target, up),
+            "intensity": _rgb(light.intensity),
+            "cutoff_angle": float(light.cutoff_angle),
+            "beam_width": float(light.beam_width),
+        }
+    if isinstance(light, DirectionalLight):
+        return {
+            "type": "directional",
+            "direction": [float(x) for x in light.direction],
+            "irradiance": _rgb(light.irradiance),
+        }
+    raise PgiError(f"light type {type(light).__name__} has no Mitsuba equivalent")
+
+
+def to_mitsuba_dict(scene: Scene) -> dict[str, Any]:
+    """A dict for ``mi.load_dict`` describing ``scene`` for Mitsuba's ``volpath``."""
+    mi = import_mitsuba()
+    media = {name: mi.load_dict(_medium(mi, m)) for name, m in scene.media.items()}
+    bsdfs = {name: mi.load_dict(_bsdf(m)) for name, m in scene.materials.items()}
+    cam = scene.camera
+    sensor: dict[str, Any] = {
+        "type": "perspective",
+        "fov": float(cam.fov),
+        "fov_axis": cam.fov_axis,
+        "to_world": _look_at(mi, cam.origin, cam.target, cam.up),
+        "near_clip": NEAR_CLIP,
+        "far_clip": FAR_CLIP,
+        "film": {
+            "type": "hdrfilm",
+            "width": scene.film.width,
+            "height": scene.film.height,
+            "rfilter": {"type": "box"},
+            "pixel_format": "rgb",
+        },
+        "sampler": {"type": "independent", "sample_count": 1},
+    }
+    if cam.medium is not None:
+        sensor["medium"] = media[cam.medium]
+    d: dict[str, Any] = {
+        "type": "scene",
+        "integrator": {
+            "type": "volpath",
+            "max_depth": scene.integrator.max_depth,
+            "rr_depth": scene.integrator.rr_depth,
+        },
+        "sensor": sensor,
+    }
+    for i, s in enumerate(scene.shapes):
+        d[f"shape_{i:03d}"] = _mesh(mi, s, bsdfs, media)
+    for i, light in enumerate(scene.lights):
+        d[f"light_{i:03d}"] = _light(mi, light)
+    return d
+
+
+def load_mitsuba_scene(scene: Scene) -> Any:
+    """The ``mi.Scene`` for ``scene``."""
+    mi = import_mitsuba()
+    try:
+        return mi.load_dict(to_mitsuba_dict(scene))
+    except RuntimeError as e:
+        raise PgiError(f"{scene.path}: Mitsuba cannot load this scene: {e}") from e
