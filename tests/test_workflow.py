@@ -1,0 +1,196 @@
+"""End-to-end tests of the Snakemake workflow.
+
+The main study runs against tests/fake_pgi.py (a stand-in with the renderer's CLI and file
+contract, no rendering) so it takes seconds; `test_real_renderer_tiny` runs configs/tiny.yaml
+with the real `pgi` when its reference renderer is available.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+SNAKEFILE = ROOT / "Snakefile"
+FAKE = Path(__file__).with_name("fake_pgi.py")
+
+pytestmark = pytest.mark.skipif(
+    importlib.util.find_spec("snakemake") is None, reason="snakemake not installed"
+)
+
+
+def snakemake(workdir: Path, *args: str, env: dict | None = None, check: bool = True):
+    e = dict(os.environ)
+    e["PYTHONPATH"] = os.pathsep.join([str(ROOT / "src"), e.get("PYTHONPATH", "")])
+    e.update(env or {})
+    cmd = [sys.executable, "-m", "snakemake", "-s", str(SNAKEFILE), "--cores", "2", *args]
+    p = subprocess.run(cmd, cwd=workdir, capture_output=True, text=True, env=e, timeout=600)
+    if check and p.returncode != 0:
+        raise AssertionError(f"snakemake failed ({p.returncode}):\n{p.stdout}\n{p.stderr}")
+    return p
+
+
+def job_counts(output: str) -> dict[str, int]:
+    """Parse the 'Job stats' table of a dry run."""
+    counts = {}
+    m = re.search(r"Job stats:\n.*?\n-+\s+-+\n(.*?)\ntotal", output, re.S)
+    if not m:
+        return counts
+    for line in m.group(1).splitlines():
+        parts = line.split()
+        if len(parts) == 2:
+            counts[parts[0]] = int(parts[1])
+    return counts
+
+
+def write_config(path: Path, scenes_dir: Path, **over) -> Path:
+    cfg = {
+        "name": "fake",
+        "scenes_dir": str(scenes_dir),
+        "results_dir": "results",
+        "reports_dir": "reports",
+        "pgi": f"{sys.executable} {FAKE}",
+        "threads": 2,
+        "scenes": ["alpha"],
+        "methods": ["pt", "lt"],
+        "budgets": [0.5, 1, 2],
+        "seeds": [1, 2],
+        "reference": {"spp": 256},
+    }
+    cfg.update(over)
+    path.write_text(yaml.safe_dump(cfg))
+    return path
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    wd = tmp_path_factory.mktemp("study")
+    for s in ("alpha", "beta"):
+        (wd / "scenes" / s).mkdir(parents=True)
+        (wd / "scenes" / s / "scene.yaml").write_text(f"# fake scene {s}\n")
+    write_config(wd / "cfg.yaml", wd / "scenes")
+    snakemake(wd, "--configfile", "cfg.yaml", env={"FAKE_PGI_METHODS": "pt,lt,sppm"})
+    return wd
+
+
+def test_outputs(study: Path) -> None:
+    rep = study / "reports"
+    for f in ("index.html", "scene-alpha.html", "data/alpha.js", "tables/summary.csv"):
+        assert (rep / f).is_file(), f
+    runs = pd.read_csv(rep / "tables" / "runs.csv")
+    assert len(runs) == 1 * 2 * 2 * 3  # scenes x methods x seeds x budgets
+    assert set(runs.method) == {"pt", "lt"}
+    assert runs.render_seconds.gt(0).all() and runs.relmse.gt(0).all()
+    assert runs.ref_ok.all()
+    assert runs.wall_seconds.notna().all() and runs.max_rss_mb.notna().all()
+    # errors fall with time for every run
+    for _, d in runs.groupby(["method", "seed"]):
+        assert d.sort_values("budget").relmse.is_monotonic_decreasing
+    conv = pd.read_csv(rep / "tables" / "convergence.csv")
+    slope = conv[(conv.metric == "relmse")].slope
+    assert slope.between(-1.2, -0.8).all()  # the fake renderer's noise falls as 1/t
+    tte = pd.read_csv(rep / "tables" / "time_to_error.csv")
+    assert tte.set_index("method").loc["pt", "speedup_vs_pt"] == pytest.approx(1.0)
+    assert (study / "results" / "reference" / "alpha" / "ref.json").is_file()
+    assert "alpha" in (rep / "tables" / "overview.md").read_text()
+
+
+def test_rerun_does_nothing(study: Path) -> None:
+    env = {"FAKE_PGI_METHODS": "pt,lt,sppm"}
+    dry = snakemake(study, "--configfile", "cfg.yaml", "-n", env=env)
+    assert "Nothing to be done" in dry.stdout + dry.stderr
+    t0 = time.monotonic()
+    snakemake(study, "--configfile", "cfg.yaml", env=env)
+    assert time.monotonic() - t0 < 10.0
+
+
+def test_new_method_and_scene_render_only_what_is_new(study: Path) -> None:
+    env = {"FAKE_PGI_METHODS": "pt,lt,sppm"}
+    write_config(study / "more.yaml", study / "scenes", methods=["pt", "lt", "sppm"])
+    c = job_counts(snakemake(study, "--configfile", "more.yaml", "-n", env=env).stdout)
+    assert c.get("render") == 2 and c.get("compare") == 2  # one method x 2 seeds
+    assert "reference_half" not in c
+    write_config(study / "more.yaml", study / "scenes", scenes=["alpha", "beta"])
+    c = job_counts(snakemake(study, "--configfile", "more.yaml", "-n", env=env).stdout)
+    assert c.get("render") == 4 and c.get("reference_half") == 2  # one scene x 2 x 2
+
+
+def test_methods_all_picks_up_new_methods(study: Path) -> None:
+    write_config(study / "all.yaml", study / "scenes", methods="all")
+    c = job_counts(
+        snakemake(
+            study, "--configfile", "all.yaml", "-n", env={"FAKE_PGI_METHODS": "pt,lt,sppm,vrl"}
+        ).stdout
+    )
+    assert c.get("render") == 4  # sppm and vrl, 2 seeds each
+
+
+def test_bad_config_fails_clearly(study: Path) -> None:
+    write_config(study / "bad.yaml", study / "scenes", budgets=[1, -2])
+    p = snakemake(study, "--configfile", "bad.yaml", "-n", check=False)
+    assert p.returncode != 0
+    assert "budgets" in p.stdout + p.stderr
+    write_config(study / "bad.yaml", study / "scenes", methods=["pt", "nosuch"])
+    p = snakemake(study, "--configfile", "bad.yaml", "-n", check=False)
+    assert p.returncode != 0 and "unknown method(s) nosuch" in p.stdout + p.stderr
+
+
+def test_slurm_profile_dry_run_parses(study: Path) -> None:
+    profile = ROOT / "configs" / "profiles" / "slurm"
+    args = ["--configfile", "cfg.yaml", "--profile", str(profile), "-n", "--forceall"]
+    if importlib.util.find_spec("snakemake_executor_plugin_slurm") is None:
+        args += ["--executor", "local"]  # profile still parsed; the plugin is not installed
+    p = snakemake(study, *args, env={"FAKE_PGI_METHODS": "pt,lt,sppm"})
+    c = job_counts(p.stdout)
+    assert c.get("render") == 4
+
+
+def test_thread_mismatch_is_an_error(tmp_path: Path, study: Path) -> None:
+    from compare.runs import compare_run
+
+    snap = study / "results" / "render" / "alpha" / "pt" / "s1"
+    ref = study / "results" / "reference" / "alpha"
+    with pytest.raises(RuntimeError, match="rendered with 2 threads but the config asks for 4"):
+        compare_run(
+            [snap / "run.t1.exr"],
+            [1.0],
+            ref / "ref.exr",
+            ref / "ref.json",
+            tmp_path / "m.csv",
+            scene="alpha",
+            method="pt",
+            seed=1,
+            threads=4,
+        )
+
+
+def _real_renderer_ready() -> bool:
+    pgi = shutil.which("pgi") or str(Path(sys.executable).with_name("pgi"))
+    if not Path(pgi).exists():
+        return False
+    for mod in ("renderer.cli", "renderer.reference", "renderer.methods.mitsuba"):
+        if importlib.util.find_spec(mod) is None:
+            return False
+    return True
+
+
+@pytest.mark.skipif(not _real_renderer_ready(), reason="real pgi render/reference not available")
+def test_real_renderer_tiny(tmp_path: Path) -> None:
+    """configs/tiny.yaml with the real renderer and Mitsuba, end to end."""
+    snakemake(tmp_path, "--configfile", str(ROOT / "configs" / "tiny.yaml"),
+              "--config", f"scenes_dir={ROOT / 'scenes'}")
+    rep = tmp_path / "reports" / "tiny"
+    runs = pd.read_csv(rep / "tables" / "runs.csv")
+    assert len(runs) > 0 and (runs.render_seconds > 0).all()
+    assert (rep / "index.html").is_file()
+    assert runs.threads.eq(2).all()
