@@ -93,9 +93,7 @@ def main(argv: list[str]) -> int:
     snaps = [float(s) for s in a.snapshots.split(",") if s]
     tmax = a.time or (max(snaps) if snaps else 1.0)
     quality = 1.0 + methods.index(a.method)  # later methods are noisier
-    noise = np.random.default_rng(a.seed * 1000 + methods.index(a.method)).standard_normal(
-        t.shape
-    )
+    noise = np.random.default_rng(a.seed * 1000 + methods.index(a.method)).standard_normal(t.shape)
     for budget in [*snaps, None]:
         secs = tmax if budget is None else budget
         img = np.maximum(t + 0.2 * quality / np.sqrt(8 * secs) * t * noise, 0)

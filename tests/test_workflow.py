@@ -187,8 +187,13 @@ def _real_renderer_ready() -> bool:
 @pytest.mark.skipif(not _real_renderer_ready(), reason="real pgi render/reference not available")
 def test_real_renderer_tiny(tmp_path: Path) -> None:
     """configs/tiny.yaml with the real renderer and Mitsuba, end to end."""
-    snakemake(tmp_path, "--configfile", str(ROOT / "configs" / "tiny.yaml"),
-              "--config", f"scenes_dir={ROOT / 'scenes'}")
+    snakemake(
+        tmp_path,
+        "--configfile",
+        str(ROOT / "configs" / "tiny.yaml"),
+        "--config",
+        f"scenes_dir={ROOT / 'scenes'}",
+    )
     rep = tmp_path / "reports" / "tiny"
     runs = pd.read_csv(rep / "tables" / "runs.csv")
     assert len(runs) > 0 and (runs.render_seconds > 0).all()

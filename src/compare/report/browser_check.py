@@ -160,9 +160,7 @@ def check_page(path: str | Path, exe: str | None = None, screenshot: str | Path 
     cdp = CDP(exe)
     try:
         target = cdp.send("Target.createTarget", {"url": "about:blank"})["targetId"]
-        sid = cdp.send("Target.attachToTarget", {"targetId": target, "flatten": True})[
-            "sessionId"
-        ]
+        sid = cdp.send("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
         for dom in ("Page", "Runtime", "Log"):
             cdp.send(f"{dom}.enable", session=sid)
         cdp.send("Page.navigate", {"url": url}, session=sid)
@@ -185,18 +183,26 @@ def check_page(path: str | Path, exe: str | None = None, screenshot: str | Path 
         )
         res.images = int(ev("document.images.length") or 0)
         res.broken_images = [x for x in (imgs or []) if x]
-        res.broken_images += ev(
-            "Array.from(document.images).filter(i => !(i.naturalWidth > 0))"
-            ".map(i => i.alt || 'img')"
-        ) or []
+        res.broken_images += (
+            ev(
+                "Array.from(document.images).filter(i => !(i.naturalWidth > 0))"
+                ".map(i => i.alt || 'img')"
+            )
+            or []
+        )
         res.viewer = bool(ev("!!document.getElementById('viewer')"))
         if res.viewer:
             ready = ev("document.getElementById('viewer').dataset.ready === '1'")
             before = ev("document.getElementById('viewer').dataset.method")
             cdp.send(
                 "Input.dispatchKeyEvent",
-                {"type": "keyDown", "key": "0", "code": "Digit0", "text": "0",
-                 "windowsVirtualKeyCode": 48},
+                {
+                    "type": "keyDown",
+                    "key": "0",
+                    "code": "Digit0",
+                    "text": "0",
+                    "windowsVirtualKeyCode": 48,
+                },
                 session=sid,
             )
             cdp.send(

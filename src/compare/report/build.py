@@ -10,7 +10,7 @@ from __future__ import annotations
 import html
 import json
 import math
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -74,7 +74,7 @@ def _ref_error_for(metric: str, ref: dict[str, Any]) -> float | None:
 def _legend(metric: str, factor: float) -> str:
     return (
         f'<p class="note">{e(_metric_label(metric))}, mean ± standard deviation over seeds. '
-        '<b>Bold green</b>: lowest mean error for that scene and budget. '
+        "<b>Bold green</b>: lowest mean error for that scene and budget. "
         f'<span class="flag">⚠</span>: the reference\'s own relMSE is not at least {factor:g}x '
         "below this cell's relMSE, so the reference may limit what the cell can show.</p>"
     )
@@ -215,7 +215,7 @@ def build_scene_page(spec: dict[str, Any]) -> None:
     )
     ref_png = I.data_uri_png(I.tonemapped_png(ref, ev))
     ncols = len(methods) + 1
-    cols = f"grid-template-columns: 5em repeat({ncols}, minmax(60px, 1fr))"
+    cols = f"grid-template-columns: 5em repeat({ncols}, minmax(60px, 240px))"
     for b in budgets:
         body.append(f"<h3>{e(b)} s</h3>")
         body.append(f'<div class="grid" style="{cols}">')
@@ -230,8 +230,9 @@ def build_scene_page(spec: dict[str, Any]) -> None:
                 body.append(f"<figure><figcaption>{e(m)}: missing</figcaption></figure>")
                 continue
             rel = float(err[m][b].mean())
+            uri = I.data_uri_png(I.tonemapped_png(x, ev))
             body.append(
-                f'<figure><img alt="{e(m)} at {e(b)} s" src="{I.data_uri_png(I.tonemapped_png(x, ev))}">'
+                f'<figure><img alt="{e(m)} at {e(b)} s" src="{uri}">'
                 f"<figcaption>{e(m)} · relMSE {T.fmt(rel)}</figcaption></figure>"
             )
         body.append('<div class="rowlabel">error</div><div></div>')
@@ -278,7 +279,7 @@ def build_index(spec: dict[str, Any]) -> None:
     colours = method_colours(methods)
     summary, runs = tabs["summary"], tabs["runs"]
     refs = {s: read_json(p) for s, p in spec["refs"].items()}
-    now = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    now = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
 
     body = [
         _nav(scenes, None),
@@ -377,9 +378,7 @@ def build_index(spec: dict[str, Any]) -> None:
                 "spp per half": (r.get("spp_per_half") or [None])[0],
                 "half-vs-half relMSE": r.get("halves_relmse"),
                 "reference relMSE (est.)": r.get("ref_relmse"),
-                "flagged cells": int(
-                    (~summary[summary.scene == s].ref_ok.astype(bool)).sum()
-                ),
+                "flagged cells": int((~summary[summary.scene == s].ref_ok.astype(bool)).sum()),
             }
             for s, r in refs.items()
         ]

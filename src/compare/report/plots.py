@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import math
+import re
 
 import matplotlib
 import numpy as np
@@ -65,4 +66,5 @@ def convergence_svg(
     fig.savefig(buf, format="svg")
     plt.close(fig)
     svg = buf.getvalue()
-    return svg[svg.find("<svg") :]  # drop the XML prolog for inlining
+    svg = svg[svg.find("<svg") :]  # drop the XML prolog for inlining
+    return re.sub(r"<metadata>.*?</metadata>\s*", "", svg, flags=re.S)

@@ -1,0 +1,86 @@
+"""The workflow config schema: shipped configs validate, bad ones fail with a clear message."""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import pytest
+import yaml
+
+pytest.importorskip("snakemake")
+from snakemake.exceptions import WorkflowError  # noqa: E402
+from snakemake.utils import validate  # noqa: E402
+
+from compare.plan import PlanError, make_plan  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+SCHEMA = str(ROOT / "configs" / "schema.yaml")
+GOOD = {"scenes": ["cbox"], "methods": ["pt"], "budgets": [1, 2], "seeds": [1]}
+
+
+@pytest.mark.parametrize("name", ["default", "full", "tiny"])
+def test_shipped_configs_validate(name: str) -> None:
+    cfg = yaml.safe_load((ROOT / "configs" / f"{name}.yaml").read_text())
+    validate(cfg, SCHEMA)
+
+
+def test_defaults_filled_in() -> None:
+    cfg = copy.deepcopy(GOOD)
+    validate(cfg, SCHEMA)
+    assert cfg["threads"] == 2 and cfg["primary_metric"] == "relmse"
+    assert cfg["ref_quality_factor"] == 10 and cfg["reports_dir"] == "reports"
+
+
+@pytest.mark.parametrize(
+    ("change", "expect"),
+    [
+        ({"budgets": [1, -2]}, r"-2 is less than or equal to the minimum of 0"),
+        ({"budgets": []}, r"\[\] should be non-empty"),
+        ({"seeds": ["one"]}, r"'one' is not of type 'integer'"),
+        ({"methods": "some"}, r"'some' is not valid under any of the given schemas"),
+        ({"threads": 0}, r"0 is less than the minimum of 1"),
+        ({"primary_metric": "psnr"}, r"'psnr' is not one of"),
+        ({"budget": [1]}, r"Additional properties are not allowed \('budget' was unexpected\)"),
+        ({"scenes": [{"nam": "x"}]}, r"not valid under any of the given schemas"),
+        ({"reference": {"spp": 0}}, r"0 is less than the minimum of 1"),
+    ],
+)
+def test_bad_config_rejected(change: dict, expect: str) -> None:
+    cfg = {**copy.deepcopy(GOOD), **change}
+    with pytest.raises(WorkflowError, match=expect):
+        validate(cfg, SCHEMA)
+
+
+def test_missing_required_key() -> None:
+    cfg = copy.deepcopy(GOOD)
+    del cfg["seeds"]
+    with pytest.raises(WorkflowError, match="'seeds' is a required property"):
+        validate(cfg, SCHEMA)
+
+
+def _scenes(tmp_path: Path) -> Path:
+    (tmp_path / "cbox").mkdir()
+    (tmp_path / "cbox" / "scene.yaml").write_text("# x\n")
+    return tmp_path
+
+
+def test_plan_unknown_scene(tmp_path: Path) -> None:
+    cfg = {**GOOD, "scenes": ["nosuch"], "scenes_dir": str(_scenes(tmp_path))}
+    with pytest.raises(PlanError, match="no scene 'nosuch'.*known scenes: cbox"):
+        make_plan(cfg, tmp_path, check_methods=False)
+
+
+def test_plan_resolves(tmp_path: Path) -> None:
+    cfg = {
+        **GOOD,
+        "scenes": ["cbox", {"name": "cbox", "reference_spp": 8}][:1],
+        "scenes_dir": str(_scenes(tmp_path)),
+        "budgets": [4, 0.5, 2],
+        "set": ["film.width=8"],
+        "pgi": "echo",
+    }
+    plan = make_plan(cfg, tmp_path, check_methods=False)
+    assert plan.budget_tags == ["0.5", "2", "4"]
+    assert plan.scene_set_args("cbox") == ["--set", "film.width=8"]
+    assert plan.pgi == ("echo",)

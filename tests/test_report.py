@@ -1,0 +1,201 @@
+"""Tables, convergence fits and the HTML report (checked in a real headless Chromium)."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from compare import tables as T
+from compare.convergence import fit_slope, time_to_error
+from compare.imageio import write_exr, write_json
+from compare.report import images as I  # noqa: N812
+from compare.report.browser_check import check_page, find_chromium
+from compare.report.build import build_index, build_scene_page
+from compare.runs import compare_run, merge_reference
+
+needs_chromium = pytest.mark.skipif(find_chromium() is None, reason="no chromium")
+
+
+def test_fit_slope_exact_power_law() -> None:
+    t = np.array([1.0, 2, 4, 8])
+    f = fit_slope(t, 0.3 * t**-0.8)
+    assert f.slope == pytest.approx(-0.8)
+    assert f.intercept == pytest.approx(math.log10(0.3))
+    assert f.r2 == pytest.approx(1.0)
+    assert f.predict(16) == pytest.approx(0.3 * 16**-0.8)
+    assert math.isnan(fit_slope([1.0], [1.0]).slope)
+
+
+def test_time_to_error() -> None:
+    t = [1.0, 2.0, 4.0]
+    e = [1.0, 0.5, 0.25]
+    assert time_to_error(t, e, 0.5) == (pytest.approx(2.0), False)
+    got, extrap = time_to_error(t, e, math.sqrt(0.5))  # halfway in log-log between 1 and 2 s
+    assert got == pytest.approx(math.sqrt(2)) and not extrap
+    got, extrap = time_to_error(t, e, 0.125)  # beyond the data: fitted slope -1
+    assert got == pytest.approx(8.0) and extrap
+    assert math.isnan(time_to_error(t, [1, 1, 1], 0.1)[0])
+
+
+def test_rgbe_roundtrip() -> None:
+    rng = np.random.default_rng(0)
+    a = rng.random((6, 5, 3)) * 50
+    d = I.decode_rgbe(I.encode_rgbe(a), 6, 5)
+    assert np.all(np.abs(d - a) <= a.max(axis=2, keepdims=True) / 128)
+
+
+def _runs() -> pd.DataFrame:
+    rows = []
+    for method, k in (("pt", 1.0), ("lt", 3.0)):
+        for seed in (1, 2):
+            for b in (1.0, 2.0, 4.0):
+                err = k / b * (1 + 0.1 * seed)
+                rows.append(
+                    {
+                        "scene": "s",
+                        "method": method,
+                        "seed": seed,
+                        "budget": b,
+                        "render_seconds": b,
+                        "relmse": err,
+                        "mse": err,
+                        "flip": err / 10,
+                        "ref_relmse": 0.2 if b == 4.0 else 1e-4,
+                        "ref_ok": not (b == 4.0),
+                        "rays": 1e6 * b,
+                        "iterations": 10 * b,
+                    }
+                )
+    return pd.DataFrame(rows)
+
+
+def test_tables_best_flags_and_speedup(tmp_path: Path) -> None:
+    tabs = T.write_tables(_runs(), tmp_path, metric="relmse", baseline="pt")
+    best = tabs["best"]
+    assert (best.method == "pt").all() and len(best) == 3
+    s = tabs["summary"].set_index(["method", "budget"])
+    assert s.loc[("pt", 1.0), "relmse_mean"] == pytest.approx(1.15)
+    assert s.loc[("pt", 1.0), "relmse_std"] == pytest.approx(np.std([1.1, 1.2], ddof=1))
+    tte = tabs["time_to_error"].set_index("method")
+    # lt has 3x the error of pt at every time and slope -1: needs 3x the time
+    assert tte.loc["lt", "speedup_vs_pt"] == pytest.approx(1 / 3)
+    md = (tmp_path / "overview.md").read_text()
+    assert "**1.15 ± 0.071**" in md and "⚠" in md
+    html = (tmp_path / "overview.html").read_text()
+    assert 'class="best"' in html and "refbad" in html
+    for name in ("runs", "summary", "convergence", "time_to_error", "stats"):
+        assert (tmp_path / f"{name}.csv").is_file()
+
+
+@pytest.fixture(scope="module")
+def report(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A small report built through the library (reference merge -> compare -> tables -> html)."""
+    wd = tmp_path_factory.mktemp("report")
+    rng = np.random.default_rng(5)
+    h, w = 24, 32
+    y, x = np.mgrid[0:h, 0:w]
+    truth = np.stack([0.2 + x / w, 0.3 + y / h, 0.5 + 0 * x], axis=2).astype(np.float64)
+    truth[8:12, 10:16] = 5.0
+    for k in (0, 1):
+        write_exr(wd / f"half{k}.exr", truth * (1 + 0.01 * rng.standard_normal(truth.shape)))
+    merge_reference(wd / "half0.exr", wd / "half1.exr", wd / "ref.exr", wd / "ref.json")
+    methods, budgets = ["pt", "lt"], ["1", "2"]
+    csvs, snaps = [], {}
+    for mi, m in enumerate(methods):
+        for seed in (1, 2):
+            paths = []
+            for b in budgets:
+                img = truth * (1 + (mi + 1) * 0.3 / float(b) * rng.standard_normal(truth.shape))
+                p = wd / m / f"s{seed}" / f"run.t{b}.exr"
+                write_exr(p, np.maximum(img, 0))
+                write_json(
+                    p.with_suffix(".json"),
+                    {"render_seconds": float(b), "threads": 2, "iterations": 3},
+                )
+                paths.append(str(p))
+            if seed == 1:
+                snaps[m] = paths
+            out = wd / "metrics" / f"{m}-{seed}.csv"
+            compare_run(
+                paths,
+                [float(b) for b in budgets],
+                wd / "ref.exr",
+                wd / "ref.json",
+                out,
+                scene="toy",
+                method=m,
+                seed=seed,
+                threads=2,
+            )
+            csvs.append(out)
+    rep = wd / "reports"
+    T.write_tables(T.load_runs(csvs), rep / "tables")
+    common = {
+        "reports": str(rep),
+        "tables": str(rep / "tables"),
+        "metric": "relmse",
+        "baseline": "pt",
+        "factor": 10,
+        "title": "test report",
+        "study": "t",
+        "methods": methods,
+        "scenes": ["toy"],
+    }
+    build_scene_page(
+        {
+            **common,
+            "scene": "toy",
+            "ref": str(wd / "ref.exr"),
+            "ref_json": str(wd / "ref.json"),
+            "seed": 1,
+            "budgets": budgets,
+            "snapshots": snaps,
+            "viewer_max_size": 512,
+        }
+    )
+    build_index({**common, "refs": {"toy": str(wd / "ref.json")}})
+    return rep
+
+
+def test_report_files(report: Path) -> None:
+    index = (report / "index.html").read_text()
+    page = (report / "scene-toy.html").read_text()
+    assert "<svg" in index and 'href="scene-toy.html"' in index
+    assert 'id="viewer"' in page and 'src="data/toy.js"' in page
+    for text in (index, page):  # nothing fetched from the network
+        assert not re.search(r"(src|href)=[\"']?(https?:)?//", text)
+    data = (report / "data" / "toy.js").read_text()
+    d = json.loads(data[len("window.PGI_DATA = ") : -2])
+    assert d["width"] == 32 and d["height"] == 24 and set(d["images"]) == {"pt", "lt"}
+
+
+@needs_chromium
+def test_report_in_headless_chromium(report: Path, tmp_path: Path) -> None:
+    for page in ("index.html", "scene-toy.html"):
+        r = check_page(report / page, screenshot=tmp_path / f"{page}.png")
+        assert not r.errors, r.errors
+        assert not r.broken_images, r.broken_images
+        assert r.screenshot_std > 2.0  # not blank
+    r = check_page(report / "scene-toy.html")
+    assert r.viewer and r.viewer_key_ok  # key "0" switched the viewer to the reference
+    assert r.images >= 9  # colour bar, reference, 2 methods x 2 budgets x (image + error)
+
+
+@needs_chromium
+def test_browser_check_catches_errors(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.html"
+    bad.write_text(
+        "<!doctype html><body><p>x</p><img alt=missing src=nothere.png>"
+        "<script>console.error('boom'); undefinedFunction();</script></body>"
+    )
+    r = check_page(bad)
+    assert not r.ok
+    assert any("boom" in e for e in r.errors)
+    assert any("undefinedFunction" in e for e in r.errors)
+    assert "missing" in r.broken_images
