@@ -117,8 +117,8 @@ def _mesh(mi: Any, s: Shape, bsdfs: dict[str, Any], media: dict[str, Any]) -> An
         has_vertex_texcoords=False,
     )
     params = mi.traverse(mesh)
-    params["vertex_positions"] = mi.Float(np.ravel(s.vertices.astype(np.float32)))
-    params["faces"] = mi.UInt32(np.ravel(s.faces.astype(np.uint32)))
+    params["vertex_positions"] = np.ravel(s.vertices.astype(np.float32))
+    params["faces"] = np.ravel(s.faces.astype(np.uint32))
     params.update()
     return mesh
 

@@ -1,0 +1,233 @@
+"""Mitsuba export: every element loads in Mitsuba with our exact triangles, and the conventions
+our renderer must match (image orientation, emitter side, grid layout) hold in Mitsuba."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from renderer.errors import PgiError
+from renderer.methods.mitsuba import MitsubaVolpath
+from renderer.mitsuba_env import find_libllvm, import_mitsuba
+from renderer.reference import derive_seed, render_reference, spp_per_pass
+from renderer.scene import load_scene
+from renderer.scene.mitsuba_export import grid_data, load_mitsuba_scene, to_mitsuba_dict
+
+mi = import_mitsuba()
+SHIPPED = ["cbox", "cbox-fog", "cbox-grid", "cbox-glass"]
+
+
+def write_scene(tmp_path: Path, doc: dict) -> Path:
+    path = tmp_path / "scene.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    return path
+
+
+def everything(tmp_path: Path) -> dict:
+    """A scene with every element type the format has."""
+    (tmp_path / "quad.obj").write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n")
+    np.save(tmp_path / "d.npy", np.random.default_rng(1).random((4, 5, 6)).astype(np.float32))
+    return {
+        "camera": {"origin": [0, 0, 5], "target": [0, 0, 0], "up": [0, 1, 0], "fov": 45,
+                   "fov_axis": "smaller", "medium": "air"},
+        "film": {"width": 8, "height": 6},
+        "integrator": {"max_depth": 6, "rr_depth": 3},
+        "materials": {
+            "white": {"type": "diffuse", "reflectance": [0.2, 0.4, 0.6]},
+            "mirror": {"type": "mirror"},
+            "glass": {"type": "dielectric", "ior": 1.33},
+            "boundary": {"type": "null"},
+        },
+        "media": {
+            "air": {"type": "homogeneous", "sigma_t": 0.01, "albedo": 1.0},
+            "fog": {"type": "homogeneous", "sigma_t": [1, 2, 3], "albedo": [0.9, 0.8, 0.7],
+                    "scale": 0.5, "phase": {"type": "hg", "g": -0.3}},
+            "smoke": {"type": "grid", "density": "d.npy", "sigma_t": 4, "albedo": 0.5,
+                      "phase": {"type": "isotropic"},
+                      "transform": [{"scale": [1, 2, 1]}, {"translate": [-0.5, -1, -0.5]}]},
+        },
+        "shapes": [
+            {"name": "floor", "type": "rectangle", "material": "white",
+             "transform": [{"scale": 3}, {"translate": [0, 0, -2]}], "exterior": "air"},
+            {"name": "lamp", "type": "rectangle", "material": "white", "emission": [5, 4, 3],
+             "transform": [{"rotate": {"axis": [1, 0, 0], "angle": 90}}, {"translate": [0, 2, 0]}]},
+            {"name": "ball", "type": "sphere", "subdivisions": 1, "material": "glass",
+             "interior": "fog", "exterior": "air", "transform": [{"translate": [1.5, 0, 0]}]},
+            {"name": "box", "type": "cube", "material": "boundary", "interior": "smoke",
+             "exterior": "air", "transform": [{"scale": [0.5, 1, 0.5]}]},
+            {"name": "quad", "type": "mesh", "file": "quad.obj", "material": "mirror",
+             "transform": [{"translate": [-2, 0, 0]}]},
+        ],
+        "lights": [
+            {"type": "point", "position": [0, 1, 1], "intensity": [1, 2, 3]},
+            {"type": "spot", "position": [0, 1.5, 1], "target": [0, 0, 0], "intensity": 10,
+             "cutoff_angle": 30, "beam_width": 10},
+            {"type": "directional", "direction": [0, -1, -1], "irradiance": 2},
+        ],
+    }  # fmt: skip
+
+
+def test_every_element_loads_in_mitsuba(tmp_path):
+    scene = load_scene(write_scene(tmp_path, everything(tmp_path)))
+    ms = load_mitsuba_scene(scene)
+    shapes = {s.id(): s for s in ms.shapes()}
+    assert len(shapes) == 5 and len(ms.emitters()) == 4
+    by_name = {s.name: shapes[f"shape_{i:03d}"] for i, s in enumerate(scene.shapes)}
+    assert "Diffuse" in str(by_name["floor"].bsdf()) and "Conductor" in str(by_name["quad"].bsdf())
+    assert "Dielectric" in str(by_name["ball"].bsdf()) and "Null" in str(by_name["box"].bsdf())
+    assert by_name["lamp"].emitter() is not None and by_name["floor"].emitter() is None
+    assert "Heterogeneous" in str(by_name["box"].interior_medium())
+    assert "Homogeneous" in str(by_name["ball"].interior_medium())
+    assert by_name["box"].exterior_medium() is ms.sensors()[0].get_medium()
+    film = ms.sensors()[0].film()
+    assert tuple(film.size()) == (8, 6) and "Box" in str(film.rfilter())
+    d = to_mitsuba_dict(scene)
+    assert d["integrator"] == {"type": "volpath", "max_depth": 6, "rr_depth": 3}
+    assert d["sensor"]["fov_axis"] == "smaller" and d["sensor"]["fov"] == 45
+    img = np.array(mi.render(ms, spp=2, seed=0))
+    assert img.shape == (6, 8, 3) and np.all(np.isfinite(img))
+
+
+def test_shapes_carry_our_triangles(tmp_path):
+    scene = load_scene(write_scene(tmp_path, everything(tmp_path)))
+    shapes = {s.id(): s for s in load_mitsuba_scene(scene).shapes()}
+    for i, ours in enumerate(scene.shapes):
+        theirs = shapes[f"shape_{i:03d}"]
+        v = np.array(theirs.vertex_positions_buffer()).reshape(-1, 3)
+        f = np.array(theirs.faces_buffer()).reshape(-1, 3)
+        assert np.array_equal(v, ours.vertices.astype(np.float32)), ours.name
+        assert np.array_equal(f, ours.faces), ours.name
+        assert not theirs.has_vertex_normals()
+
+
+def test_mitsuba_cannot_take_a_rotated_grid(tmp_path):
+    doc = everything(tmp_path)
+    doc["media"]["smoke"]["transform"] = [{"rotate": {"axis": [0, 1, 0], "angle": 30}}]
+    with pytest.raises(PgiError, match="axis-aligned"):
+        to_mitsuba_dict(load_scene(write_scene(tmp_path, doc)))
+
+
+def test_grid_layout_matches_density_x_y_z(tmp_path):
+    """Mitsuba's gridvolume at voxel centre (i + 0.5) / res equals density[i, j, k] * sigma_t."""
+    scene = load_scene(write_scene(tmp_path, everything(tmp_path)))
+    smoke = scene.media["smoke"]
+    vol = mi.load_dict({
+        "type": "gridvolume", "grid": mi.VolumeGrid(grid_data(smoke)),
+        "to_world": mi.ScalarTransform4f(smoke.to_world.tolist()),
+    })  # fmt: skip
+    res = np.array(smoke.density.shape)
+    ijk = np.stack(np.meshgrid(*[np.arange(n) for n in res], indexing="ij"), -1).reshape(-1, 3)
+    local = (ijk + 0.5) / res
+    world = local @ smoke.to_world[:3, :3].T + smoke.to_world[:3, 3]
+    it = mi.Interaction3f()
+    got = []
+    for p in world:  # one point at a time: works in scalar and vectorised variants alike
+        it.p = mi.Point3f(*(float(x) for x in p))
+        got.append(float(np.array(vol.eval_1(it)).ravel()[0]))
+    want = smoke.density[ijk[:, 0], ijk[:, 1], ijk[:, 2]] * 4
+    assert np.allclose(got, want, rtol=1e-5)
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_shipped_scenes_load_in_mitsuba(name):
+    ms = load_mitsuba_scene(load_scene(name))
+    assert len(ms.shapes()) == len(load_scene(name).shapes)
+
+
+def test_tiny_reference_is_finite():
+    scene = load_scene("cbox-fog", ["film.width=8", "film.height=6"])
+    image, info = render_reference(scene, spp=5, seed=3, threads=1)
+    assert image.shape == (6, 8, 3) and image.dtype == np.float64
+    assert np.all(np.isfinite(image)) and image.mean() > 0
+    assert info["passes"] == 1 and info["threads"] == 1
+
+
+def test_reference_passes_and_seeds():
+    big = load_scene("cbox")
+    assert spp_per_pass(big, 10_000) == 256 and spp_per_pass(big, 7) == 7
+    seeds = {derive_seed(t, s, i) for t in ("reference", "mitsuba") for s in (0, 1) for i in (0, 1)}
+    assert len(seeds) == 8 and all(0 <= s < 2**32 for s in seeds)
+
+
+def test_mitsuba_method_is_deterministic_per_iteration():
+    scene = load_scene("cbox", ["film.width=8", "film.height=8"])
+    a = MitsubaVolpath(scene, seed=7, threads=1, params={"spp_per_iteration": 2})
+    b = MitsubaVolpath(scene, seed=7, threads=2, params={"spp_per_iteration": 2})
+    a.run_iteration(0)
+    a.run_iteration(1)
+    b.run_iteration(1)
+    b.run_iteration(0)
+    assert np.allclose(a.image(), b.image(), rtol=1e-6)
+    assert a.stats() == dict(b.stats()) and a.stats()["spp"] == 4 and a.stats()["nonfinite"] == 0
+    with pytest.raises(PgiError, match="unknown parameter"):
+        MitsubaVolpath(scene, seed=0, threads=1, params={"spp": 1})
+
+
+# --------------------------------------------------------------------- conventions to match
+
+
+def single_light_scene(
+    tmp_path: Path, centre, facing_camera=True, size=(0.3, 0.3, 1), **camera
+) -> Path:
+    """Camera at +z looking at the origin (up +y); one emissive rectangle (radiance 1) at
+    ``centre`` of half-size ``size``, facing the camera or away from it."""
+    angle = 0 if facing_camera else 180
+    doc = {
+        "camera": {"origin": [0, 0, 5], "target": [0, 0, 0], "up": [0, 1, 0], "fov": 40,
+                   **camera},
+        "film": {"width": 16, "height": 12},
+        "integrator": {"max_depth": 1},
+        "materials": {"black": {"type": "diffuse", "reflectance": 0}},
+        "shapes": [{"type": "rectangle", "material": "black", "emission": 1.0, "transform": [
+            {"scale": [float(x) for x in size]}, {"rotate": {"axis": [0, 1, 0], "angle": angle}},
+            {"translate": [float(x) for x in centre]}]}],
+    }  # fmt: skip
+    return write_scene(tmp_path, doc)
+
+
+def test_image_orientation(tmp_path):
+    """Row 0 is the top of the image; image right is cross(view, up); nothing is mirrored."""
+    right_up = load_scene(single_light_scene(tmp_path, [1, 0.6, 0]))
+    img, _ = render_reference(right_up, spp=4)
+    lum = img.sum(axis=2)
+    rows, cols = np.nonzero(lum)
+    assert len(rows) and cols.min() >= 8 and rows.max() < 6  # right half, top half
+    # camera up = -y: the view turns 180 degrees about the view axis: now left and bottom
+    flipped = load_scene(single_light_scene(tmp_path, [1, 0.6, 0], up=[0, -1, 0]))
+    rows, cols = np.nonzero(render_reference(flipped, spp=4)[0].sum(axis=2))
+    assert len(rows) and cols.max() < 8 and rows.min() >= 6
+
+
+def test_area_light_is_one_sided(tmp_path):
+    front, _ = render_reference(load_scene(single_light_scene(tmp_path, [0, 0, 0])), spp=4)
+    back, _ = render_reference(load_scene(single_light_scene(tmp_path, [0, 0, 0], False)), spp=4)
+    assert front.max() == pytest.approx(1.0) and back.max() == 0
+
+
+@pytest.mark.parametrize(
+    ("fov_axis", "fov", "half_extent_x"),
+    [("x", 40.0, np.tan(np.radians(20))), ("y", 40.0, np.tan(np.radians(20)) * 16 / 12)],
+)
+def test_fov_axis(tmp_path, fov_axis, fov, half_extent_x):
+    """fov spans the film's width (x) or height (y); an emitter at the edge lands at the edge."""
+    # a tall strip at depth 5 whose left border is at 90% of the image's half-width: with 16
+    # columns, the last column (covering 87.5%..100%) is 80% lit, the others are dark
+    half_width = 5 * float(half_extent_x)
+    centre = [0.9 * half_width + 0.5, 0, 0]
+    scene = load_scene(
+        single_light_scene(tmp_path, centre, size=(0.5, 10, 1), fov=fov, fov_axis=fov_axis)
+    )
+    img, _ = render_reference(scene, spp=64)
+    lit = img.sum(axis=2).mean(axis=0)  # per column, radiance 1 in 3 channels
+    assert np.all(lit[:15] == 0) and lit[15] == pytest.approx(3 * 0.8, abs=0.15)
+
+
+def test_libllvm_search_finds_only_llvm_16_or_newer():
+    path = find_libllvm()
+    if path is not None:
+        import re
+
+        assert int(re.search(r"libLLVM(?:-|\.so\.)(\d+)", path).group(1)) >= 16

@@ -1,0 +1,342 @@
+"""Scene loader: validation messages (file + key path), overrides, includes, primitives."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from renderer.errors import PgiError
+from renderer.scene import load_scene, primitives
+from renderer.scene.loader import find_scene_file
+
+REPO = Path(__file__).resolve().parents[1]
+SHIPPED = ["cbox", "cbox-fog", "cbox-grid", "cbox-glass"]
+
+BASE = {
+    "name": "t",
+    "description": "test scene",
+    "camera": {"origin": [0, 0, 4], "target": [0, 0, 0], "up": [0, 1, 0], "fov": 40},
+    "film": {"width": 8, "height": 6},
+    "materials": {"white": {"type": "diffuse", "reflectance": 0.5}},
+    "shapes": [
+        {"name": "floor", "type": "rectangle", "material": "white"},
+        {"name": "lamp", "type": "rectangle", "material": "white", "emission": 1.0,
+         "transform": [{"translate": [0, 0, 1]}]},
+    ],
+}  # fmt: skip
+
+
+def write(tmp_path: Path, doc: dict | str, name: str = "scene.yaml") -> Path:
+    path = tmp_path / name
+    path.write_text(doc if isinstance(doc, str) else yaml.safe_dump(doc))
+    return path
+
+
+def edit(**sections) -> dict:
+    doc = yaml.safe_load(yaml.safe_dump(BASE))  # deep copy
+    doc.update(sections)
+    return doc
+
+
+def expect_error(path: Path, key: str, pattern: str = "", overrides=()) -> str:
+    with pytest.raises(PgiError) as info:
+        load_scene(path, overrides)
+    msg = str(info.value)
+    assert str(path) in msg, msg
+    assert f": {key}:" in msg, msg
+    assert re.search(pattern, msg), msg
+    assert "\n" not in msg
+    return msg
+
+
+def test_minimal_scene_loads(tmp_path):
+    scene = load_scene(write(tmp_path, BASE))
+    assert scene.film.width == 8 and scene.camera.fov_axis == "x"
+    assert scene.integrator.max_depth == -1 and scene.integrator.rr_depth == 5
+    assert scene.shapes[1].emission == (1.0, 1.0, 1.0)
+    assert np.allclose(scene.shapes[1].vertices[:, 2], 1)
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_shipped_scenes_load_and_explain_themselves(name):
+    scene = load_scene(name)
+    assert scene.name == name and scene.path == REPO / "scenes" / name / "scene.yaml"
+    assert len(scene.description) > 40 and scene.stresses and scene.expected_winners
+    assert (scene.film.width, scene.film.height) == (256, 256)
+    assert any(s.emission for s in scene.shapes)
+
+
+def test_shipped_scenes_share_the_box():
+    boxes = [{s.name: s for s in load_scene(n).shapes} for n in SHIPPED]
+    for name in ["floor", "ceiling", "back", "left", "right", "short-box", "tall-box", "light"]:
+        for other in boxes[1:]:
+            assert np.array_equal(boxes[0][name].vertices, other[name].vertices)
+
+
+def test_scene_path_forms(tmp_path, monkeypatch):
+    folder = REPO / "scenes" / "cbox"
+    assert find_scene_file("cbox") == folder / "scene.yaml"
+    assert find_scene_file(folder) == folder / "scene.yaml"
+    assert find_scene_file(folder / "scene.yaml") == folder / "scene.yaml"
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "scenes" / "mine").mkdir(parents=True)
+    write(tmp_path / "scenes" / "mine", BASE)
+    assert load_scene("mine").name == "t"
+    with pytest.raises(PgiError, match="not found"):
+        load_scene("no-such-scene")
+
+
+def test_broken_yaml(tmp_path):
+    path = write(tmp_path, "camera: [1, 2\nfilm: {")
+    with pytest.raises(PgiError, match=rf"^{re.escape(str(path))}:\d+: invalid YAML"):
+        load_scene(path)
+
+
+def test_duplicate_yaml_key(tmp_path):
+    path = write(tmp_path, yaml.safe_dump(BASE) + "film: {width: 1, height: 1}\n")
+    with pytest.raises(PgiError, match="duplicate key 'film'"):
+        load_scene(path)
+
+
+def test_unknown_key(tmp_path):
+    doc = edit()
+    doc["camera"]["fvo"] = 30
+    expect_error(write(tmp_path, doc), "camera.fvo", "unknown key.*fov")
+    expect_error(write(tmp_path, edit(colour=1)), "colour", "unknown key")
+
+
+def test_wrong_type(tmp_path):
+    doc = edit()
+    doc["film"]["width"] = "wide"
+    expect_error(write(tmp_path, doc), "film.width", "expected an integer >= 1, got 'wide'")
+    doc = edit()
+    doc["camera"]["origin"] = [0, 0]
+    expect_error(write(tmp_path, doc), "camera.origin", "list of 3 numbers")
+    doc = edit()
+    doc["shapes"][0]["type"] = "disc"
+    expect_error(write(tmp_path, doc), "shapes[0].type", "rectangle, cube, sphere, mesh")
+
+
+def test_missing_key(tmp_path):
+    doc = edit()
+    del doc["shapes"][1]["material"]
+    expect_error(write(tmp_path, doc), "shapes[1].material", "missing required key")
+
+
+def test_missing_mesh_file(tmp_path):
+    doc = edit()
+    doc["shapes"].append({"type": "mesh", "file": "nope.ply", "material": "white"})
+    expect_error(write(tmp_path, doc), "shapes[2].file", "mesh file not found")
+
+
+def test_mesh_file_loads_through_mitsuba(tmp_path):
+    (tmp_path / "tri.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\n")
+    doc = edit()
+    doc["shapes"].append({"type": "mesh", "file": "tri.obj", "material": "white",
+                          "transform": [{"translate": [5, 0, 0]}]})  # fmt: skip
+    mesh = load_scene(write(tmp_path, doc)).shapes[2]
+    assert mesh.faces.shape == (2, 3) and mesh.faces.dtype == np.int32
+    assert np.isclose(primitives.area(mesh.vertices, mesh.faces), 1.0)
+    assert np.allclose(mesh.vertices.min(axis=0), [5, 0, 0])
+
+
+def grid_scene(tmp_path: Path, density: np.ndarray, **medium) -> Path:
+    np.save(tmp_path / "d.npy", density)
+    doc = edit(media={"smoke": {"type": "grid", "density": "d.npy", "albedo": 0.5, **medium}})
+    doc["shapes"].append({"type": "cube", "material": "white", "interior": "smoke"})
+    return write(tmp_path, doc)
+
+
+def test_grid_medium(tmp_path):
+    d = np.arange(24, dtype=np.float64).reshape(2, 3, 4)
+    path = grid_scene(tmp_path, d, transform=[{"scale": 2}, {"translate": [-1, -1, -1]}])
+    m = load_scene(path).media["smoke"]
+    assert m.density.dtype == np.float32 and m.density.shape == (2, 3, 4)
+    assert np.array_equal(m.density, d) and m.source == tmp_path / "d.npy"
+    assert np.allclose(m.to_world @ [1, 1, 1, 1], [1, 1, 1, 1])
+    assert m.sigma_t == (1.0, 1.0, 1.0) and m.phase.type == "isotropic"
+
+
+def test_negative_density(tmp_path):
+    d = np.ones((2, 2, 2))
+    d[1, 0, 1] = -0.5
+    msg = expect_error(grid_scene(tmp_path, d), "media.smoke.density", ">= 0")
+    assert "[1, 0, 1]" in msg
+
+
+def test_negative_sigma_t_and_bad_albedo(tmp_path):
+    fog = {"type": "homogeneous", "sigma_t": [1, -1, 1], "albedo": 0.5}
+    expect_error(write(tmp_path, edit(media={"fog": fog})), "media.fog.sigma_t[1]", ">= 0")
+    fog = {"type": "homogeneous", "sigma_t": 1, "albedo": 1.5}
+    expect_error(write(tmp_path, edit(media={"fog": fog})), "media.fog.albedo", "<= 1")
+
+
+@pytest.mark.parametrize("g", [1.0, -1.0, 1.5])
+def test_hg_g_out_of_range(tmp_path, g):
+    fog = {"type": "homogeneous", "sigma_t": 1, "albedo": 0.5, "phase": {"type": "hg", "g": g}}
+    expect_error(write(tmp_path, edit(media={"fog": fog})), "media.fog.phase.g", "> -1 and < 1")
+
+
+@pytest.mark.parametrize("ior", [0, -1.5])
+def test_ior_not_positive(tmp_path, ior):
+    doc = edit(
+        materials={"white": {"type": "diffuse"}, "glass": {"type": "dielectric", "ior": ior}}
+    )
+    expect_error(write(tmp_path, doc), "materials.glass.ior", "> 0")
+
+
+def test_zero_area_light(tmp_path):
+    doc = edit()
+    doc["shapes"][1]["transform"] = [{"scale": [1, 0, 1]}]
+    expect_error(write(tmp_path, doc), "shapes[1]", "zero surface area.*emitter")
+
+
+@pytest.mark.parametrize(
+    ("where", "key"),
+    [("material", "shapes[0].material"), ("interior", "shapes[0].interior")],
+)
+def test_unknown_reference(tmp_path, where, key):
+    doc = edit()
+    doc["shapes"][0][where] = "gold"
+    expect_error(write(tmp_path, doc), key, "unknown .* 'gold'")
+
+
+def test_unknown_camera_medium(tmp_path):
+    doc = edit()
+    doc["camera"]["medium"] = "fog"
+    expect_error(write(tmp_path, doc), "camera.medium", "unknown medium 'fog'.*none defined")
+
+
+def test_degenerate_camera(tmp_path):
+    doc = edit()
+    doc["camera"]["target"] = [0, 0, 4]
+    expect_error(write(tmp_path, doc), "camera.target", "view direction is undefined")
+    doc = edit()
+    doc["camera"]["up"] = [0, 0, -2]
+    expect_error(write(tmp_path, doc), "camera.up", "parallel to the view direction")
+
+
+def test_scene_without_light(tmp_path):
+    doc = edit()
+    del doc["shapes"][1]["emission"]
+    expect_error(write(tmp_path, doc), "lights", "no light")
+
+
+def test_lights(tmp_path):
+    lights = [
+        {"type": "point", "position": [0, 1, 0], "intensity": [1, 2, 3]},
+        {"type": "spot", "position": [0, 1, 0], "target": [0, 0, 0], "intensity": 5},
+        {"type": "directional", "direction": [0, -2, 0], "irradiance": 1},
+    ]
+    point, spot, sun = load_scene(write(tmp_path, edit(lights=lights))).lights
+    assert point.intensity == (1, 2, 3)
+    assert spot.cutoff_angle == 20 and spot.beam_width == 15
+    assert np.allclose(sun.direction, [0, -1, 0])
+    lights[1]["beam_width"] = 30
+    expect_error(write(tmp_path, edit(lights=lights)), "lights[1].beam_width", "<= 20")
+
+
+def test_null_material_written_as_yaml_null(tmp_path):
+    doc = edit(materials={"white": {"type": "diffuse"}, "boundary": {"type": None}})
+    assert load_scene(write(tmp_path, doc)).materials["boundary"].type == "null"
+
+
+def test_overrides(tmp_path):
+    fog = {"type": "homogeneous", "sigma_t": 1, "albedo": 0.5}
+    path = write(tmp_path, edit(media={"fog": fog}))
+    scene = load_scene(
+        path,
+        ["film.width=64", "integrator.max_depth=3", "media.fog.scale=2",
+         "shapes[1].emission=[1, 2, 3]", "media.fog.albedo = [0.1, 0.2, 0.3]"],
+    )  # fmt: skip
+    assert scene.film.width == 64 and scene.integrator.max_depth == 3
+    assert scene.media["fog"].scale == 2 and scene.media["fog"].albedo == (0.1, 0.2, 0.3)
+    assert scene.shapes[1].emission == (1, 2, 3)
+
+
+def test_bad_overrides(tmp_path):
+    path = write(tmp_path, BASE)
+    msg = expect_error(path, "film.width", "expected an integer", overrides=["film.width=-3"])
+    assert "override 'film.width=-3'" in msg
+    with pytest.raises(PgiError, match="expected key.path=value"):
+        load_scene(path, ["film.width"])
+    with pytest.raises(PgiError, match=r"shapes\[7\] does not exist"):
+        load_scene(path, ["shapes[7].material=white"])
+
+
+def test_include(tmp_path):
+    base = yaml.safe_load(yaml.safe_dump(BASE))
+    del base["name"], base["description"]
+    write(tmp_path, base, "common.yaml")
+    doc = {
+        "include": "common.yaml",
+        "film": {"width": 2, "height": 2},
+        "materials": {"black": {"type": "diffuse", "reflectance": 0}},
+        "shapes": [{"type": "cube", "material": "blak"}],
+    }
+    path = write(tmp_path, doc)
+    # the error names the including file and the shape's index in it
+    expect_error(path, "shapes[0].material", "unknown material 'blak'")
+    doc["shapes"][0]["material"] = "black"
+    scene = load_scene(write(tmp_path, doc))
+    assert [s.name for s in scene.shapes] == ["floor", "lamp", "cube2"]
+    assert scene.film.width == 2 and set(scene.materials) == {"white", "black"}
+    base["shapes"][1]["material"] = "nope"  # an error inside the included file names it
+    write(tmp_path, base, "common.yaml")
+    with pytest.raises(
+        PgiError, match=rf"^{re.escape(str(tmp_path / 'common.yaml'))}: shapes\[1\]"
+    ):
+        load_scene(path)
+
+
+def test_rectangle_and_cube_normals():
+    v, f = primitives.rectangle()
+    n = primitives.face_normals(v, f)
+    assert np.allclose(n / np.linalg.norm(n, axis=1)[:, None], [0, 0, 1])
+    assert primitives.area(v, f) == pytest.approx(4)
+    v, f = primitives.cube()
+    n = primitives.face_normals(v, f)
+    centres = v[f].mean(axis=1)
+    unit = n / np.linalg.norm(n, axis=1)[:, None]
+    # each face normal is the axis its triangle's centre lies furthest along
+    assert np.allclose(
+        unit, np.sign(centres) * (np.abs(centres) == np.abs(centres).max(1)[:, None])
+    )
+    assert primitives.area(v, f) == pytest.approx(24)
+
+
+@pytest.mark.parametrize("n", [0, 2, 4])
+def test_sphere_outward_and_area(n):
+    v, f = primitives.icosphere(n)
+    assert len(f) == 20 * 4**n
+    assert np.allclose(np.linalg.norm(v, axis=1), 1)
+    assert np.all(np.einsum("ij,ij->i", primitives.face_normals(v, f), v[f].mean(axis=1)) > 0)
+    assert primitives.area(v, f) == pytest.approx(4 * np.pi, rel=0.5 / 4**n)
+
+
+def test_mirroring_transform_keeps_normals_outward(tmp_path):
+    doc = edit()
+    mirrored = [{"scale": [-1, 1, 1]}, {"translate": [3, 0, 0]}]
+    doc["shapes"].append({"type": "cube", "material": "white", "transform": mirrored})
+    cube = load_scene(write(tmp_path, doc)).shapes[2]
+    n = primitives.face_normals(cube.vertices, cube.faces)
+    out = cube.vertices[cube.faces].mean(axis=1) - [3, 0, 0]
+    assert np.all(np.einsum("ij,ij->i", n, out) > 0)
+
+
+def test_transform_ops(tmp_path):
+    doc = edit()
+    doc["shapes"][0]["transform"] = [
+        {"scale": [2, 1, 1]},
+        {"rotate": {"axis": [0, 0, 1], "angle": 90}},
+        {"matrix": [[1, 0, 0, 1], [0, 1, 0, 2], [0, 0, 1, 3], [0, 0, 0, 1]]},
+    ]
+    floor = load_scene(write(tmp_path, doc)).shapes[0]
+    # corner (1, 1, 0) -> scale (2, 1, 0) -> rotate (-1, 2, 0) -> translate (0, 4, 3)
+    assert np.allclose(floor.vertices[2], [0, 4, 3])
+    doc["shapes"][0]["transform"] = [{"shear": 1}]
+    expect_error(write(tmp_path, doc), "shapes[0].transform[0].shear", "unknown transform op")
