@@ -21,18 +21,27 @@ from renderer.scene.model import Scene
 _TARGET_SAMPLES = 1 << 16
 
 
+def default_spp(scene: Scene, spp_budget: int | None) -> int:
+    """~65k samples per iteration, and a divisor of the spp budget so the budget is met exactly."""
+    spp = max(1, _TARGET_SAMPLES // (scene.film.width * scene.film.height))
+    if spp_budget:
+        spp = max(d for d in range(1, min(spp, spp_budget) + 1) if spp_budget % d == 0)
+    return spp
+
+
 class MitsubaVolpath:
     id = "mitsuba"
     description = "Mitsuba 3 volpath at the same budget"
 
-    def __init__(self, scene: Scene, *, seed: int, threads: int, params: dict) -> None:
+    def __init__(
+        self, scene: Scene, *, seed: int, threads: int, params: dict, spp_budget: int | None = None
+    ) -> None:
         unknown = set(params) - {"spp_per_iteration"}
         if unknown:
             raise PgiError(
                 f"method mitsuba: unknown parameter(s) {sorted(unknown)}; known: spp_per_iteration"
             )
-        pixels = scene.film.width * scene.film.height
-        spp = params.get("spp_per_iteration", max(1, _TARGET_SAMPLES // pixels))
+        spp = params.get("spp_per_iteration", default_spp(scene, spp_budget))
         if not isinstance(spp, int) or isinstance(spp, bool) or spp < 1:
             raise PgiError(
                 f"method mitsuba: spp_per_iteration must be an integer >= 1, got {spp!r}"
