@@ -87,7 +87,7 @@ def build_native_scene(scene: Scene) -> NativeScene:
     def medium(name: str | None) -> int:
         return -1 if name is None else medium_ids[name]
 
-    tris, mats, inside, outside, owner = [], [], [], [], []
+    tris, mats, inside, outside, transition, owner = [], [], [], [], [], []
     for index, shape in enumerate(scene.shapes):
         t = shape.vertices[shape.faces]
         tris.append(t)
@@ -95,6 +95,9 @@ def build_native_scene(scene: Scene) -> NativeScene:
         mats.append(np.full(n, material_ids[shape.material], np.int32))
         inside.append(np.full(n, medium(shape.interior), np.int32))
         outside.append(np.full(n, medium(shape.exterior), np.int32))
+        # As in Mitsuba, a shape that names no medium leaves the current one unchanged.
+        named = shape.interior is not None or shape.exterior is not None
+        transition.append(np.full(n, named, np.uint8))
         owner.append(np.full(n, index, np.int32))
     triangles = np.concatenate(tris).astype(np.float64)
     owner = np.concatenate(owner)
@@ -105,14 +108,16 @@ def build_native_scene(scene: Scene) -> NativeScene:
     keep = area > _DEGENERATE_AREA * max(extent, 1e-300) ** 2
     triangles = np.ascontiguousarray(triangles[keep])
     owner = owner[keep]
-    mats, inside, outside = (np.concatenate(a)[keep] for a in (mats, inside, outside))
+    mats, inside, outside, transition = (
+        np.concatenate(a)[keep] for a in (mats, inside, outside, transition)
+    )
 
     emitter = np.full(len(triangles), -1, np.int32)
     for index, shape in enumerate(scene.shapes):
         if shape.emission is not None:
             members = np.flatnonzero(owner == index).astype(np.int32)
             emitter[members] = core.add_area_light(tuple(map(float, shape.emission)), members)
-    core.set_triangles(triangles, mats, emitter, inside, outside)
+    core.set_triangles(triangles, mats, emitter, inside, outside, transition)
 
     for light in scene.lights:
         if isinstance(light, PointLight):

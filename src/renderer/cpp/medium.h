@@ -73,6 +73,13 @@ struct MediumStats {
     uint64_t density_lookups = 0;
 };
 
+// exp(-sigma * t) per channel, with zero extinction meaning 1 even at t = inf.
+inline RGB beer_lambert(const RGB &sigma, double t) {
+    RGB tr;
+    for (int c = 0; c < 3; ++c) tr[c] = sigma[c] > 0 ? std::exp(-sigma[c] * t) : 1.0;
+    return tr;
+}
+
 // Result of sampling a free-flight distance along [0, tmax).
 struct FreeFlight {
     bool scattered = false;
@@ -152,14 +159,15 @@ inline FreeFlight sample_free_flight(const Medium &m, const Vec3 &o, const Vec3 
         double sig = m.sigma_t[channel];
         double t = sig > 0 ? -std::log1p(-ut) / sig : kInf;
         if (t < tmax) {
-            RGB tr = exp(-m.sigma_t * t);
+            RGB tr = beer_lambert(m.sigma_t, t);
             double pdf = mean(m.sigma_t * tr);
             f.scattered = true;
             f.t = t;
             f.weight = m.sigma_t * m.albedo * tr / pdf;
         } else {
-            RGB tr = exp(-m.sigma_t * tmax);
-            f.weight = tr / mean(tr);
+            RGB tr = beer_lambert(m.sigma_t, tmax);
+            double pdf = mean(tr);
+            f.weight = pdf > 0 ? tr / pdf : RGB(0.0);
         }
         return f;
     }
@@ -185,8 +193,7 @@ inline FreeFlight sample_free_flight(const Medium &m, const Vec3 &o, const Vec3 
 inline RGB transmittance(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax, Sampler &rng,
                          MediumStats &stats) {
     if (m.type == MediumType::Homogeneous) {
-        if (!std::isfinite(tmax)) return is_black(m.sigma_t) ? RGB(1.0) : RGB(0.0);
-        return exp(-m.sigma_t * tmax);
+        return beer_lambert(m.sigma_t, tmax);
     }
     double tr = 1;
     traverse_majorants(m, o, d, tmax, [&](double t0, double t1, double maj) {

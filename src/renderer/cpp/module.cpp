@@ -68,11 +68,12 @@ static void add_scene(nb::module_ &m) {
         .def(nb::new_([]() { return std::make_shared<Scene>(); }))
         .def("set_triangles",
              [](Scene &s, Array<double> verts, Array<int32_t> material, Array<int32_t> emitter,
-                Array<int32_t> interior, Array<int32_t> exterior) {
+                Array<int32_t> interior, Array<int32_t> exterior, Array<uint8_t> transition) {
                  if (verts.ndim() != 3 || verts.shape(1) != 3 || verts.shape(2) != 3)
                      throw std::invalid_argument("vertices must be (T, 3, 3) float64");
                  size_t n = verts.shape(0);
                  for (auto *a : {&material, &emitter, &interior, &exterior}) check_len(a->shape(0), n, "triangle attribute");
+                 check_len(transition.shape(0), n, "triangle attribute");
                  s.triangles.resize(n);
                  const double *v = verts.data();
                  for (size_t i = 0; i < n; ++i) {
@@ -91,6 +92,7 @@ static void add_scene(nb::module_ &m) {
                      t.emitter = emitter.data()[i];
                      t.interior = interior.data()[i];
                      t.exterior = exterior.data()[i];
+                     t.transition = transition.data()[i] != 0;
                  }
              })
         .def("add_material",

@@ -81,7 +81,7 @@ size_t PathTracer::shade(const Hits &hits) {
 
         if (scene.materials[T.material].type == MaterialType::Null) {
             // Index-matched boundary: change medium, keep direction, depth and MIS state.
-            p.medium = T.medium_towards(p.dir);
+            p.medium = T.medium_after(p.medium, p.dir);
             p.pos = scene.offset(x, tri, p.dir);
             p.alive = ++p.null_crossings < kMaxNullCrossings;
             continue;
@@ -99,15 +99,16 @@ void PathTracer::queue_shadow(CameraPath &p, size_t slot, const LightSample &ls,
     if (!ls.valid || is_black(f)) return;
     double w = ls.delta ? 1.0 : power_heuristic(ls.pdf, pdf_dir);
     ShadowRay &r = shadow_.rays[slot];
-    r.origin = origin;
     r.dir = ls.wi;
-    r.remaining = ls.dist;
-    r.target_eps = std::isfinite(ls.dist) ? 2 * scene_->offset_length(origin + ls.wi * ls.dist) : 0;
+    r.to_infinity = !std::isfinite(ls.dist);
+    r.target = r.to_infinity ? Vec3() : ls.point;
+    r.target_eps = r.to_infinity ? 0 : 2 * scene_->offset_length(ls.point);
+    r.restart_at(origin);
     r.medium = medium;
     r.contribution = p.throughput * f * ls.value * w;
     r.rng = p.rng.split(uint64_t(p.depth));
     r.live = !is_black(r.contribution);
-    r.target = int64_t(&p - paths_.data());  // the path gathers it, then the film in order
+    r.receiver = int64_t(&p - paths_.data());  // the path gathers it, then the film in order
 }
 
 void PathTracer::scatter_in_medium(CameraPath &p, size_t slot, const Vec3 &x) {
@@ -147,7 +148,7 @@ void PathTracer::scatter_on_surface(CameraPath &p, size_t slot, int tri, const V
         if (ls.valid) {
             RGB f = bsdf_eval(mat, T.n, wo, ls.wi);
             double pdf = bsdf_pdf(mat, T.n, wo, ls.wi);
-            queue_shadow(p, slot, ls, f, pdf, scene_->offset(x, tri, ls.wi), T.medium_towards(ls.wi));
+            queue_shadow(p, slot, ls, f, pdf, scene_->offset(x, tri, ls.wi), T.medium_after(p.medium, ls.wi));
         }
     }
     double u1 = p.rng.next(), u2 = p.rng.next(), u3 = p.rng.next();
@@ -162,7 +163,7 @@ void PathTracer::scatter_on_surface(CameraPath &p, size_t slot, int tri, const V
     p.prev_delta = bs.delta;
     p.eta2 *= bs.eta * bs.eta;
     p.dir = bs.wi;
-    p.medium = T.medium_towards(bs.wi);
+    p.medium = T.medium_after(p.medium, bs.wi);
     p.pos = scene_->offset(x, tri, bs.wi);
     p.alive = russian_roulette(p);
 }

@@ -57,6 +57,7 @@ LightSample Scene::sample_light(const Vec3 &p, Sampler &rng) const {
             double b1, b2;
             square_to_triangle(u2, u3, b1, b2);
             Vec3 q = t.point(b1, b2);
+            s.point = q;
             Vec3 to = q - p;
             double d2 = dot(to, to);
             if (d2 <= 0) return s;
@@ -74,6 +75,7 @@ LightSample Scene::sample_light(const Vec3 &p, Sampler &rng) const {
             Vec3 to = l.position - p;
             double d2 = dot(to, to);
             if (d2 <= 0) return s;
+            s.point = l.position;
             s.dist = std::sqrt(d2);
             s.wi = to / s.dist;
             double falloff = l.type == LightType::Spot ? l.spot_falloff(-s.wi) : 1.0;

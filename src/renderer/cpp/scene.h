@@ -20,9 +20,14 @@ struct Triangle {
     int emitter = -1;   // index into Scene::area_emitters, or -1
     int interior = -1;  // medium behind the normal, -1 = vacuum
     int exterior = -1;  // medium on the normal side
+    bool transition = false;  // has an interior or exterior medium (else media pass it unchanged)
     Vec3 point(double b1, double b2) const { return p0 + e1 * b1 + e2 * b2; }
-    // Medium a ray with direction d enters when it leaves this surface.
-    int medium_towards(const Vec3 &d) const { return dot(d, n) > 0 ? exterior : interior; }
+    // Medium a ray in medium `current` is in after leaving this surface in
+    // direction d. As in Mitsuba, only shapes that name a medium change it.
+    int medium_after(int current, const Vec3 &d) const {
+        if (!transition) return current;
+        return dot(d, n) > 0 ? exterior : interior;
+    }
 };
 
 enum class LightType : int { Area = 0, Point = 1, Spot = 2, Directional = 3 };
@@ -51,6 +56,7 @@ struct Light {
 };
 
 struct LightSample {
+    Vec3 point;       // on the light (finite lights)
     Vec3 wi;          // from the shading point towards the light
     double dist = 0;  // to the light point (infinite for directional)
     RGB value{0.0};   // emitted radiance / pdf, including the selection probability

@@ -36,13 +36,23 @@ struct Hits {
 // through null boundaries; media along the way multiply it by transmittance.
 struct ShadowRay {
     Vec3 origin, dir;
-    double remaining = 0;  // distance left to the target (infinite for directional lights)
-    double target_eps = 0; // stop this short of the target (it lies on a surface)
+    Vec3 target;              // point to reach (unused when it lies at infinity)
+    bool to_infinity = false; // directional lights
+    double target_eps = 0;    // stop this short of the target (it lies on a surface)
     int medium = -1;
-    int64_t target = 0;    // what receives the contribution (a path or a pixel)
+    int64_t receiver = 0;     // what receives the contribution (a path or a pixel)
     RGB contribution;
     Sampler rng;
     bool live = false;
+    // Distance left along dir; origins move off surfaces, so it is measured, not tracked.
+    double remaining() const { return to_infinity ? kInf : dot(target - origin, dir); }
+    // Start at p (already offset off a surface), pointing exactly at the target: an
+    // offset origin with the old direction would pass beside the target and could
+    // hit the light's own surface at grazing angles.
+    void restart_at(const Vec3 &p) {
+        origin = p;
+        if (!to_infinity) dir = normalize(target - origin);
+    }
 };
 
 class ShadowQueue {
@@ -58,7 +68,7 @@ public:
         rays.resize(n);
         for (size_t k = 0; k < n; ++k) {
             const ShadowRay &r = rays[k];
-            buf.put(k, r.origin, r.dir, r.remaining - r.target_eps);
+            buf.put(k, r.origin, r.dir, r.remaining() - r.target_eps);
         }
         return n;
     }
@@ -71,16 +81,16 @@ public:
         for (int64_t k = 0; k < int64_t(rays.size()); ++k) {
             ShadowRay &r = rays[k];
             MediumStats local;
-            double limit = r.remaining - r.target_eps;
-            bool blocked = hits.prim[k] >= 0 && hits.tfar[k] < limit;
-            double t = blocked ? double(hits.tfar[k]) : r.remaining;
+            double remaining = r.remaining();
+            bool blocked = hits.prim[k] >= 0 && hits.tfar[k] < remaining - r.target_eps;
+            double t = blocked ? double(hits.tfar[k]) : remaining;
             if (r.medium >= 0) {
                 r.contribution *= transmittance(scene.media[r.medium], r.origin, r.dir, t, r.rng, local);
                 lookups += local.density_lookups;
             }
             if (!blocked) {
                 r.live = false;
-                if (!is_black(r.contribution)) deliver(r.target, r.contribution);
+                if (!is_black(r.contribution)) deliver(r.receiver, r.contribution);
                 continue;
             }
             int tri = hits.prim[k];
@@ -90,9 +100,8 @@ public:
                 continue;
             }
             Vec3 p = r.origin + r.dir * t;
-            r.medium = T.medium_towards(r.dir);
-            r.origin = scene.offset(p, tri, r.dir);
-            r.remaining -= t;
+            r.medium = T.medium_after(r.medium, r.dir);
+            r.restart_at(scene.offset(p, tri, r.dir));
         }
         stats.density_lookups += lookups;
     }

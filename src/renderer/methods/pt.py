@@ -23,16 +23,27 @@ from ..tracer import EmbreeTracer, RayBatch
 _TARGET_WAVE_PATHS = 1 << 16
 
 
+def wave_spp(pixels: int, spp_budget: int | None) -> int:
+    """Samples per pixel in one wave: enough paths to amortise the passes, and a
+    divisor of the spp budget so that a budget is met exactly."""
+    spp = max(1, math.ceil(_TARGET_WAVE_PATHS / pixels))
+    if spp_budget:
+        spp = max(d for d in range(1, min(spp, spp_budget) + 1) if spp_budget % d == 0)
+    return spp
+
+
 class PathTracing:
     id = "pt"
     description = "volumetric path tracing, next-event estimation and MIS"
 
-    def __init__(self, scene: Scene, *, seed: int, threads: int, params: dict) -> None:
+    def __init__(
+        self, scene: Scene, *, seed: int, threads: int, params: dict, spp_budget: int | None = None
+    ) -> None:
         unknown = set(params) - {"spp_per_wave"}
         if unknown:
             raise PgiError(f"method pt: unknown parameter(s) {sorted(unknown)}; known: spp_per_wave")
         pixels = scene.film.width * scene.film.height
-        spp_per_wave = int(params.get("spp_per_wave", max(1, math.ceil(_TARGET_WAVE_PATHS / pixels))))
+        spp_per_wave = int(params.get("spp_per_wave", wave_spp(pixels, spp_budget)))
         self.native = build_native_scene(scene)
         self.tracer = EmbreeTracer(self.native.triangles, threads)
         self.kernel = _core.PathTracer(
