@@ -1,67 +1,12 @@
 // Python bindings of the native core: scene construction, the wavefront
 // kernels of each method, and probes of the sampling routines for tests.
-#include <nanobind/nanobind.h>
-#include <nanobind/ndarray.h>
-#include <nanobind/stl/array.h>
-#include <nanobind/stl/shared_ptr.h>
-#include <nanobind/stl/tuple.h>
-
-#include <memory>
-#include <stdexcept>
-
+#include "bindings.h"
 #include "pt.h"
 
 namespace nb = nanobind;
 using namespace nb::literals;
 using namespace pgi;
-
-using V3 = std::array<double, 3>;
-template <typename T>
-using Array = nb::ndarray<T, nb::c_contig, nb::device::cpu>;
-template <typename T>
-using NumpyOut = nb::ndarray<nb::numpy, T>;
-
-static Vec3 vec(const V3 &a) { return {a[0], a[1], a[2]}; }
-
-static void check_len(size_t got, size_t want, const char *what) {
-    if (got < want) throw std::invalid_argument(std::string(what) + ": buffer too small");
-}
-
-static RayBuffers ray_buffers(Array<float> org, Array<float> dir, Array<float> tmax) {
-    if (org.ndim() != 2 || org.shape(1) != 3 || dir.ndim() != 2 || dir.shape(1) != 3 || tmax.ndim() != 1)
-        throw std::invalid_argument("ray buffers must be (n, 3), (n, 3), (n,) float32");
-    size_t n = tmax.shape(0);
-    check_len(org.shape(0), n, "origins");
-    check_len(dir.shape(0), n, "directions");
-    return RayBuffers{org.data(), dir.data(), tmax.data(), n};
-}
-
-static Hits hits_of(Array<float> tfar, Array<int32_t> prim, Array<float> u, Array<float> v) {
-    size_t n = prim.shape(0);
-    check_len(tfar.shape(0), n, "tfar");
-    check_len(u.shape(0), n, "u");
-    check_len(v.shape(0), n, "v");
-    return Hits{tfar.data(), u.data(), v.data(), prim.data(), n};
-}
-
-template <typename T>
-static NumpyOut<T> to_numpy(std::vector<T> &&data, std::initializer_list<size_t> shape) {
-    auto heap = std::make_unique<std::vector<T>>(std::move(data));
-    T *ptr = heap->data();
-    // The capsule owns the vector from here on and frees it with the array.
-    nb::capsule owner(heap.get(), [](void *p) noexcept {
-        std::unique_ptr<std::vector<T>>(static_cast<std::vector<T> *>(p));
-    });
-    heap.release();
-    return NumpyOut<T>(ptr, shape.size(), shape.begin(), owner);
-}
-
-static NumpyOut<double> film_image(const Film &f) {
-    std::vector<double> img(f.sum.size());
-    double inv = f.samples_per_pixel ? 1.0 / double(f.samples_per_pixel) : 0.0;
-    for (size_t i = 0; i < img.size(); ++i) img[i] = f.sum[i] * inv;
-    return to_numpy(std::move(img), {size_t(f.height), size_t(f.width), 3});
-}
+using namespace pgi::bind;
 
 static void add_scene(nb::module_ &m) {
     nb::class_<Scene>(m, "Scene")
@@ -285,54 +230,10 @@ static void add_sampling_probes(nb::module_ &m) {
           }, "type"_a, "g"_a, "wo"_a, "wi"_a);
 }
 
-static void add_path_tracer(nb::module_ &m) {
-    nb::class_<PathTracer>(m, "PathTracer")
-        .def(nb::init<std::shared_ptr<const Scene>, int, int, uint64_t, int, int>(), "scene"_a, "max_depth"_a,
-             "rr_depth"_a, "seed"_a, "spp_per_wave"_a, "threads"_a)
-        .def_prop_ro("capacity", &PathTracer::capacity)
-        .def("begin_wave",
-             [](PathTracer &pt, int64_t it, Array<float> o, Array<float> d, Array<float> t) {
-                 RayBuffers b = ray_buffers(o, d, t);
-                 check_len(b.capacity, pt.capacity(), "ray buffers");
-                 nb::gil_scoped_release release;
-                 return pt.begin_wave(it, b);
-             })
-        .def("shade",
-             [](PathTracer &pt, Array<float> tfar, Array<int32_t> prim, Array<float> u, Array<float> v) {
-                 Hits h = hits_of(tfar, prim, u, v);
-                 nb::gil_scoped_release release;
-                 return pt.shade(h);
-             })
-        .def("shadow_rays",
-             [](PathTracer &pt, Array<float> o, Array<float> d, Array<float> t) {
-                 RayBuffers b = ray_buffers(o, d, t);
-                 nb::gil_scoped_release release;
-                 return pt.shadow_rays(b);
-             })
-        .def("resolve_shadows",
-             [](PathTracer &pt, Array<float> tfar, Array<int32_t> prim) {
-                 Hits h{tfar.data(), nullptr, nullptr, prim.data(), prim.shape(0)};
-                 nb::gil_scoped_release release;
-                 pt.resolve_shadows(h);
-             })
-        .def("next_rays",
-             [](PathTracer &pt, Array<float> o, Array<float> d, Array<float> t) {
-                 RayBuffers b = ray_buffers(o, d, t);
-                 nb::gil_scoped_release release;
-                 return pt.next_rays(b);
-             })
-        .def("end_wave", &PathTracer::end_wave, nb::call_guard<nb::gil_scoped_release>())
-        .def("image", [](const PathTracer &pt) { return film_image(pt.film()); })
-        .def_prop_ro("samples_per_pixel", [](const PathTracer &pt) { return pt.film().samples_per_pixel; })
-        .def_prop_ro("nonfinite", [](const PathTracer &pt) { return pt.film().nonfinite; })
-        .def_prop_ro("density_lookups", &PathTracer::density_lookups)
-        .def_prop_ro("paths_traced", &PathTracer::paths_traced);
-}
-
 NB_MODULE(_core, m) {
     m.doc() = "pgi native core: scene, media, sampling and the wavefront kernels of each method";
     m.def("max_threads", []() { return omp_get_max_threads(); });
     add_scene(m);
     add_sampling_probes(m);
-    add_path_tracer(m);
+    bind_pt(m);
 }

@@ -1,0 +1,76 @@
+// Helpers shared by the binding files: array conversion, ray/hit buffers,
+// results handed back to numpy. Each method binds itself in its own file with
+// a `void bind_<method>(nb::module_ &)` called from module.cpp.
+#pragma once
+
+#include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+#include <nanobind/stl/array.h>
+#include <nanobind/stl/shared_ptr.h>
+#include <nanobind/stl/tuple.h>
+
+#include <array>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "wavefront.h"
+
+namespace pgi::bind {
+
+namespace nb = nanobind;
+
+using V3 = std::array<double, 3>;
+template <typename T>
+using Array = nb::ndarray<T, nb::c_contig, nb::device::cpu>;
+template <typename T>
+using NumpyOut = nb::ndarray<nb::numpy, T>;
+
+inline Vec3 vec(const V3 &a) { return {a[0], a[1], a[2]}; }
+
+inline void check_len(size_t got, size_t want, const char *what) {
+    if (got < want) throw std::invalid_argument(std::string(what) + ": buffer too small");
+}
+
+inline RayBuffers ray_buffers(Array<float> org, Array<float> dir, Array<float> tmax) {
+    if (org.ndim() != 2 || org.shape(1) != 3 || dir.ndim() != 2 || dir.shape(1) != 3 || tmax.ndim() != 1)
+        throw std::invalid_argument("ray buffers must be (n, 3), (n, 3), (n,) float32");
+    size_t n = tmax.shape(0);
+    check_len(org.shape(0), n, "origins");
+    check_len(dir.shape(0), n, "directions");
+    return RayBuffers{org.data(), dir.data(), tmax.data(), n};
+}
+
+inline Hits hits_of(Array<float> tfar, Array<int32_t> prim, Array<float> u, Array<float> v) {
+    size_t n = prim.shape(0);
+    check_len(tfar.shape(0), n, "tfar");
+    check_len(u.shape(0), n, "u");
+    check_len(v.shape(0), n, "v");
+    return Hits{tfar.data(), u.data(), v.data(), prim.data(), n};
+}
+
+template <typename T>
+inline NumpyOut<T> to_numpy(std::vector<T> &&data, std::initializer_list<size_t> shape) {
+    auto heap = std::make_unique<std::vector<T>>(std::move(data));
+    T *ptr = heap->data();
+    // The capsule owns the vector from here on and frees it with the array.
+    nb::capsule owner(heap.get(), [](void *p) noexcept {
+        std::unique_ptr<std::vector<T>>(static_cast<std::vector<T> *>(p));
+    });
+    heap.release();
+    return NumpyOut<T>(ptr, shape.size(), shape.begin(), owner);
+}
+
+inline NumpyOut<double> film_image(const Film &f) {
+    std::vector<double> img(f.sum.size());
+    double inv = f.samples_per_pixel ? 1.0 / double(f.samples_per_pixel) : 0.0;
+    for (size_t i = 0; i < img.size(); ++i) img[i] = f.sum[i] * inv;
+    return to_numpy(std::move(img), {size_t(f.height), size_t(f.width), 3});
+}
+
+
+// One per method file; module.cpp calls each.
+void bind_pt(nb::module_ &m);
+
+}  // namespace pgi::bind
