@@ -236,4 +236,5 @@ NB_MODULE(_core, m) {
     add_scene(m);
     add_sampling_probes(m);
     bind_pt(m);
+    bind_lt(m);
 }

@@ -31,6 +31,7 @@ class Method(Protocol):
 # listing methods or rendering with one does not load the others' dependencies.
 _METHODS: dict[str, tuple[str, str, str]] = {
     "pt": ("pt", "PathTracing", "volumetric path tracing, next-event estimation and MIS"),
+    "lt": ("lt", "LightTracing", "light tracing: light paths connected to the camera"),
     "mitsuba": ("mitsuba", "MitsubaVolpath", "Mitsuba 3 volpath at the same budget"),
 }
 

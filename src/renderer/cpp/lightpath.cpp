@@ -1,0 +1,305 @@
+// Light-path tracing (see lightpath.h for the API and the meaning of records).
+#include "lightpath.h"
+
+#include <stdexcept>
+#include <string>
+
+namespace pgi {
+
+// Null crossings allowed per path before we call it trapped.
+constexpr int kMaxLightNullCrossings = 256;
+// Stream tag so that light paths never share random numbers with camera paths.
+constexpr uint64_t kLightStreamTag = 0x4c69676874506174ull;
+
+LightPathTracer::LightPathTracer(std::shared_ptr<const Scene> scene, int max_depth, int rr_depth, uint64_t seed,
+                                 int64_t paths_per_iteration, int threads, int64_t max_records)
+    : scene_(std::move(scene)), max_depth_(max_depth), rr_depth_(rr_depth), seed_(seed),
+      threads_(std::max(1, threads)), max_records_(max_records) {
+    if (paths_per_iteration <= 0) throw std::invalid_argument("paths_per_iteration must be positive");
+    paths_.resize(size_t(paths_per_iteration));
+    emission_medium_triangle_.assign(scene_->triangles.size(), -1);
+    emission_medium_light_.assign(scene_->lights.size(), -1);
+}
+
+void LightPathTracer::set_emission_media(const std::vector<int32_t> &per_triangle,
+                                         const std::vector<int32_t> &per_light) {
+    if (per_triangle.size() != scene_->triangles.size() || per_light.size() != scene_->lights.size())
+        throw std::invalid_argument("emission media: one entry per triangle and per light expected");
+    for (int32_t m : per_triangle)
+        if (m >= int32_t(scene_->media.size())) throw std::invalid_argument("emission media: bad medium index");
+    for (int32_t m : per_light)
+        if (m >= int32_t(scene_->media.size())) throw std::invalid_argument("emission media: bad medium index");
+    emission_medium_triangle_ = per_triangle;
+    emission_medium_light_ = per_light;
+}
+
+void LightPathTracer::check_capacity() const {
+    int64_t records = int64_t(vertices_.size() + segments_.size());
+    if (max_records_ > 0 && records > max_records_)
+        throw std::length_error("light paths: " + std::to_string(records) +
+                                " records exceed the configured bound of " + std::to_string(max_records_) +
+                                " (lower the photon count or raise the bound)");
+}
+
+size_t LightPathTracer::begin_iteration(int64_t iteration, const RayBuffers &out) {
+    iteration_ = iteration;
+    vertices_.clear();
+    segments_.clear();
+    active_.clear();
+    const Scene &scene = *scene_;
+    if (max_depth_ == 0 || scene.light_selection.size() == 0 || scene.light_selection.total() <= 0) return 0;
+    size_t n = paths_.size();
+    if (out.capacity < n) throw std::invalid_argument("light paths: ray buffers too small");
+    slot_vertex_.resize(n);
+    slot_segment_.resize(n);
+    slot_has_vertex_.assign(n, 0);
+    slot_has_segment_.assign(n, 0);
+#pragma omp parallel for schedule(static) num_threads(threads_)
+    for (int64_t i = 0; i < int64_t(n); ++i) {
+        LightPathState &p = paths_[i];
+        p = LightPathState();
+        p.rng = Sampler(stream_key(seed_ ^ kLightStreamTag, uint64_t(iteration), uint64_t(i)));
+        emit(p, size_t(i), i);
+    }
+    paths_traced_ += n;
+    collect(n);
+    size_t k = 0;
+    active_.resize(n);
+    for (size_t i = 0; i < n; ++i)
+        if (paths_[i].alive) active_[k++] = int32_t(i);
+    active_.resize(k);
+    for (size_t j = 0; j < k; ++j) {
+        const LightPathState &p = paths_[active_[j]];
+        out.put(j, p.pos, p.dir, kInf);
+    }
+    return k;
+}
+
+// Emission: a light by power, then a point and a direction on it (Jensen 2001, ch. 5).
+void LightPathTracer::emit(LightPathState &p, size_t slot, int64_t path) {
+    const Scene &scene = *scene_;
+    double u_pick = p.rng.next(), u1 = p.rng.next(), u2 = p.rng.next(), u3 = p.rng.next();
+    double u4 = p.rng.next(), u5 = p.rng.next();
+    size_t li = scene.light_selection.sample(u_pick);
+    double pick = scene.light_selection.pmf(li);
+    if (!(pick > 0)) return;
+    const Light &l = scene.lights[li];
+    switch (l.type) {
+        case LightType::Area: {
+            // Point uniform by area, direction cosine-weighted on the front side:
+            // power = Le cos / (pdf_A * cos / pi) = Le * pi * A / pick.
+            const AreaEmitter &e = scene.area_emitters[l.emitter];
+            int tri = e.triangles[e.by_area.sample(u1)];
+            const Triangle &T = scene.triangles[tri];
+            double b1, b2;
+            square_to_triangle(u2, u3, b1, b2);
+            Vec3 x = T.point(b1, b2);
+            double inv_pdf_area = e.area / pick;
+            if (record_vertices_) {
+                LightVertex &v = slot_vertex_[slot];
+                v = LightVertex();
+                v.pos = x;
+                v.wi = T.n;
+                v.power = e.radiance * inv_pdf_area;
+                v.path = int32_t(path);
+                v.triangle = tri;
+                v.medium = T.transition ? T.exterior : emission_medium_triangle_[tri];
+                v.depth = 0;
+                v.kind = VertexKind::Emission;
+                slot_has_vertex_[slot] = 1;
+            }
+            Vec3 local = square_to_cosine_hemisphere(u4, u5);
+            if (local.z <= 0) return;
+            p.dir = Frame(T.n).to_world(local);
+            p.power = e.radiance * (kPi * inv_pdf_area);
+            p.pos = scene.offset(x, tri, p.dir);
+            p.medium = T.transition ? T.medium_after(-1, p.dir) : emission_medium_triangle_[tri];
+            break;
+        }
+        case LightType::Point: {
+            p.pos = l.position;
+            p.dir = square_to_uniform_sphere(u4, u5);
+            p.power = l.intensity * (4 * kPi / pick);
+            p.medium = emission_medium_light_[li];
+            break;
+        }
+        case LightType::Spot: {
+            // Uniform in the cutoff cone, weighted by the falloff.
+            double cos_theta = 1 - u4 * (1 - l.cos_cutoff);
+            p.pos = l.position;
+            p.dir = direction_around(l.direction, cos_theta, u5);
+            double falloff = l.spot_falloff(p.dir);
+            p.power = l.intensity * (falloff * 2 * kPi * (1 - l.cos_cutoff) / pick);
+            p.medium = emission_medium_light_[li];
+            break;
+        }
+        case LightType::Directional: {
+            // A disk covering the scene's bounding sphere, just outside it,
+            // perpendicular to the direction of travel: power = E * pi R^2 / pick.
+            double radius = scene.scene_radius * 1.01;
+            Vec3 disk = square_to_cosine_hemisphere(u4, u5);  // x, y uniform on the unit disk
+            Frame f(l.direction);
+            p.pos = scene.scene_center - l.direction * radius + (f.s * disk.x + f.t * disk.y) * radius;
+            p.dir = l.direction;
+            p.power = l.intensity * (kPi * radius * radius / pick);
+            p.medium = emission_medium_light_[li];
+            break;
+        }
+    }
+    double peak = max_component(p.power);
+    if (!(peak > 0) || !is_finite(p.power)) return;
+    p.inv_initial = 1 / peak;
+    p.alive = in_range(1);
+}
+
+void LightPathTracer::scatter(const Hits &hits) {
+    const Scene &scene = *scene_;
+    uint64_t lookups = 0;
+    size_t n = hits.count;
+    slot_has_vertex_.assign(n, 0);
+    slot_has_segment_.assign(n, 0);
+#pragma omp parallel for schedule(dynamic, 256) num_threads(threads_) reduction(+ : lookups)
+    for (int64_t k = 0; k < int64_t(n); ++k) {
+        LightPathState &p = paths_[active_[k]];
+        int tri = hits.prim[k];
+        double t_hit = tri >= 0 ? double(hits.tfar[k]) : kInf;
+        if (p.medium >= 0) {
+            MediumStats local;
+            FreeFlight ff = sample_free_flight(scene.media[p.medium], p.pos, p.dir, t_hit, p.rng, local);
+            lookups += local.density_lookups;
+            // A point on this segment scatters into a vertex of depth p.depth + 1.
+            if (record_segments_ && in_range(p.depth + 1)) {
+                LightSegment &s = slot_segment_[k];
+                s.origin = p.pos;
+                s.dir = p.dir;
+                s.length = ff.scattered ? ff.t : t_hit;
+                s.t_surface = t_hit;
+                s.power = p.power;
+                s.path = active_[k];
+                s.medium = p.medium;
+                s.depth = int16_t(p.depth);
+                s.scattered = ff.scattered;
+                slot_has_segment_[k] = 1;
+            }
+            p.power *= ff.weight;
+            if (ff.scattered) {
+                scatter_in_medium(p, size_t(k), p.pos + p.dir * ff.t);
+                continue;
+            }
+        }
+        if (tri < 0) {
+            p.alive = false;
+            continue;
+        }
+        const Triangle &T = scene.triangles[tri];
+        Vec3 x = T.point(hits.u[k], hits.v[k]);
+        if (scene.materials[T.material].type == MaterialType::Null) {
+            p.medium = T.medium_after(p.medium, p.dir);
+            p.pos = scene.offset(x, tri, p.dir);
+            p.alive = ++p.null_crossings < kMaxLightNullCrossings;
+            continue;
+        }
+        scatter_on_surface(p, size_t(k), tri, x);
+    }
+    stats_.density_lookups += lookups;
+    collect(n);
+}
+
+void LightPathTracer::scatter_in_medium(LightPathState &p, size_t slot, const Vec3 &x) {
+    const Medium &m = scene_->media[p.medium];
+    ++p.depth;
+    Vec3 wi = -p.dir;
+    if (record_vertices_ && in_range(p.depth)) {
+        LightVertex &v = slot_vertex_[slot];
+        v = LightVertex();
+        v.pos = x;
+        v.wi = wi;
+        v.power = p.power;
+        v.path = int32_t(&p - paths_.data());
+        v.medium = p.medium;
+        v.depth = int16_t(p.depth);
+        v.kind = VertexKind::Medium;
+        v.after_specular = p.after_specular;
+        slot_has_vertex_[slot] = 1;
+    }
+    if (!in_range(p.depth + 1)) {
+        p.alive = false;
+        return;
+    }
+    double pdf;
+    double u1 = p.rng.next(), u2 = p.rng.next();
+    // Phase functions are symmetric and sampled exactly: weight 1.
+    p.dir = phase_sample(m.phase, wi, u1, u2, pdf);
+    p.pos = x;
+    p.after_specular = false;
+    p.alive = russian_roulette(p);
+}
+
+void LightPathTracer::scatter_on_surface(LightPathState &p, size_t slot, int tri, const Vec3 &x) {
+    const Triangle &T = scene_->triangles[tri];
+    const Material &mat = scene_->materials[T.material];
+    ++p.depth;
+    Vec3 wi = -p.dir;
+    if (record_vertices_ && !mat.is_delta() && dot(wi, T.n) > 0 && in_range(p.depth)) {
+        LightVertex &v = slot_vertex_[slot];
+        v = LightVertex();
+        v.pos = x;
+        v.wi = wi;
+        v.power = p.power;
+        v.path = int32_t(&p - paths_.data());
+        v.triangle = tri;
+        v.medium = p.medium;
+        v.depth = int16_t(p.depth);
+        v.kind = VertexKind::Surface;
+        v.after_specular = p.after_specular;
+        slot_has_vertex_[slot] = 1;
+    }
+    if (!in_range(p.depth + 1)) {
+        p.alive = false;
+        return;
+    }
+    double u1 = p.rng.next(), u2 = p.rng.next(), u3 = p.rng.next();
+    BsdfSample bs = bsdf_sample(mat, T.n, wi, u1, u2, u3, /*radiance=*/false);
+    if (!bs.valid) {
+        p.alive = false;
+        return;
+    }
+    p.power *= bs.weight;
+    p.after_specular = bs.delta;
+    p.dir = bs.wi;
+    p.medium = T.medium_after(p.medium, bs.wi);
+    p.pos = scene_->offset(x, tri, bs.wi);
+    p.alive = russian_roulette(p);
+}
+
+// After rr_depth real events, continue with probability min(max(power) / max(emitted), 0.95).
+bool LightPathTracer::russian_roulette(LightPathState &p) {
+    if (is_black(p.power)) return false;
+    if (p.depth <= rr_depth_) return true;
+    double q = std::min(max_component(p.power) * p.inv_initial, 0.95);
+    if (!(p.rng.next() < q)) return false;
+    p.power = p.power / q;
+    return true;
+}
+
+void LightPathTracer::collect(size_t slots) {
+    for (size_t k = 0; k < slots; ++k) {
+        if (slot_has_segment_[k]) segments_.push_back(slot_segment_[k]);
+        if (slot_has_vertex_[k]) vertices_.push_back(slot_vertex_[k]);
+    }
+    check_capacity();
+}
+
+size_t LightPathTracer::next_rays(const RayBuffers &out) {
+    size_t n = 0;
+    for (int32_t i : active_)
+        if (paths_[i].alive) active_[n++] = i;
+    active_.resize(n);
+    for (size_t k = 0; k < n; ++k) {
+        const LightPathState &p = paths_[active_[k]];
+        out.put(k, p.pos, p.dir, kInf);
+    }
+    return n;
+}
+
+}  // namespace pgi

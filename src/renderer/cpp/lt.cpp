@@ -1,0 +1,91 @@
+// lt: light tracing (see lt.h).
+#include "lt.h"
+
+#include <stdexcept>
+
+namespace pgi {
+
+constexpr uint64_t kConnectionStreamTag = 0x436f6e6e65637473ull;
+
+LightTracer::LightTracer(std::shared_ptr<const Scene> scene, uint64_t seed, int threads)
+    : scene_(std::move(scene)), seed_(seed), threads_(std::max(1, threads)),
+      film_(scene_->camera.width, scene_->camera.height) {}
+
+size_t LightTracer::connect(const LightPathTracer &paths) {
+    const Scene &scene = *scene_;
+    const Camera &cam = scene.camera;
+    const std::vector<LightVertex> &verts = paths.vertices();
+    const double inv_paths = 1.0 / double(paths.paths_per_iteration());
+    const uint64_t iteration = uint64_t(paths.iteration());
+    splats_.assign(verts.size(), Splat());
+    shadow_.rays.assign(verts.size(), ShadowRay());
+    light_paths_ += uint64_t(paths.paths_per_iteration());
+#pragma omp parallel for schedule(static) num_threads(threads_)
+    for (int64_t k = 0; k < int64_t(verts.size()); ++k) {
+        const LightVertex &v = verts[k];
+        ShadowRay &r = shadow_.rays[k];
+        CameraConnection c = connect_to_camera(cam, v.pos);
+        if (!c.valid) continue;
+        RGB f(0.0);
+        Vec3 origin = v.pos;
+        int medium = v.medium;
+        switch (v.kind) {
+            case VertexKind::Emission: {  // one-sided emitter: Le cos / pdf_A
+                double cos_l = dot(v.wi, c.to_camera);
+                if (cos_l <= 0) continue;
+                f = RGB(cos_l);
+                origin = scene.offset(v.pos, v.triangle, c.to_camera);
+                break;
+            }
+            case VertexKind::Surface: {
+                const Triangle &T = scene.triangles[v.triangle];
+                f = bsdf_eval(scene.materials[T.material], T.n, v.wi, c.to_camera);
+                origin = scene.offset(v.pos, v.triangle, c.to_camera);
+                medium = T.medium_after(v.medium, c.to_camera);
+                break;
+            }
+            case VertexKind::Medium:
+                f = RGB(phase_eval(scene.media[v.medium].phase, v.wi, c.to_camera));
+                break;
+        }
+        RGB value = v.power * f * (c.importance * inv_paths);
+        if (is_black(value)) continue;
+        splats_[k].pixel = c.pixel;
+        r.dir = -c.to_camera;  // placeholder; restart_at aims at the target
+        r.target = cam.origin;
+        r.to_infinity = false;
+        r.target_eps = 0;
+        r.restart_at(origin);
+        r.medium = medium;
+        r.receiver = k;
+        r.contribution = value;
+        r.rng = Sampler(stream_key(seed_ ^ kConnectionStreamTag, iteration, uint64_t(k)));
+        r.live = true;
+    }
+    size_t live = 0;
+    for (const ShadowRay &r : shadow_.rays) live += r.live;
+    return live;
+}
+
+size_t LightTracer::shadow_rays(const RayBuffers &out) {
+    size_t live = 0;
+    for (const ShadowRay &r : shadow_.rays) live += r.live;
+    if (live > out.capacity) throw std::invalid_argument("lt: connection ray buffers too small");
+    return shadow_.compact_and_write(out);
+}
+
+void LightTracer::resolve_shadows(const Hits &hits) {
+    shadow_.resolve(*scene_, hits, threads_, stats_, [&](int64_t k, const RGB &value) {
+        splats_[k].value += value;  // one connection per vertex: no race
+    });
+}
+
+void LightTracer::end_iteration() {
+    for (const Splat &s : splats_)
+        if (s.pixel >= 0 && !is_black(s.value)) film_.add(s.pixel, s.value);
+    film_.samples_per_pixel += 1;  // the image is the mean of the iterations' estimates
+    splats_.clear();
+    shadow_.clear();
+}
+
+}  // namespace pgi

@@ -1,0 +1,143 @@
+// Bindings of the shared light-path tracer (lightpath.h) and of the lt kernel (lt.h).
+#include <nanobind/stl/vector.h>
+
+#include "bindings.h"
+#include "lt.h"
+
+namespace pgi::bind {
+
+using namespace nb::literals;
+
+namespace {
+
+nb::dict vertex_arrays(const std::vector<LightVertex> &vs) {
+    size_t n = vs.size();
+    std::vector<double> pos(3 * n), wi(3 * n), power(3 * n);
+    std::vector<int32_t> path(n), tri(n), medium(n);
+    std::vector<int16_t> depth(n);
+    std::vector<uint8_t> kind(n), after_specular(n);
+    for (size_t i = 0; i < n; ++i) {
+        const LightVertex &v = vs[i];
+        for (int a = 0; a < 3; ++a) {
+            pos[3 * i + a] = v.pos[a];
+            wi[3 * i + a] = v.wi[a];
+            power[3 * i + a] = v.power[a];
+        }
+        path[i] = v.path;
+        tri[i] = v.triangle;
+        medium[i] = v.medium;
+        depth[i] = v.depth;
+        kind[i] = uint8_t(v.kind);
+        after_specular[i] = v.after_specular;
+    }
+    nb::dict d;
+    d["position"] = to_numpy(std::move(pos), {n, 3});
+    d["wi"] = to_numpy(std::move(wi), {n, 3});
+    d["power"] = to_numpy(std::move(power), {n, 3});
+    d["path"] = to_numpy(std::move(path), {n});
+    d["triangle"] = to_numpy(std::move(tri), {n});
+    d["medium"] = to_numpy(std::move(medium), {n});
+    d["depth"] = to_numpy(std::move(depth), {n});
+    d["kind"] = to_numpy(std::move(kind), {n});
+    d["after_specular"] = to_numpy(std::move(after_specular), {n});
+    return d;
+}
+
+nb::dict segment_arrays(const std::vector<LightSegment> &ss) {
+    size_t n = ss.size();
+    std::vector<double> origin(3 * n), dir(3 * n), power(3 * n), len(n), t_surface(n);
+    std::vector<int32_t> path(n), medium(n);
+    std::vector<int16_t> depth(n);
+    std::vector<uint8_t> scattered(n);
+    for (size_t i = 0; i < n; ++i) {
+        const LightSegment &s = ss[i];
+        for (int a = 0; a < 3; ++a) {
+            origin[3 * i + a] = s.origin[a];
+            dir[3 * i + a] = s.dir[a];
+            power[3 * i + a] = s.power[a];
+        }
+        len[i] = s.length;
+        t_surface[i] = s.t_surface;
+        path[i] = s.path;
+        medium[i] = s.medium;
+        depth[i] = s.depth;
+        scattered[i] = s.scattered;
+    }
+    nb::dict d;
+    d["origin"] = to_numpy(std::move(origin), {n, 3});
+    d["direction"] = to_numpy(std::move(dir), {n, 3});
+    d["power"] = to_numpy(std::move(power), {n, 3});
+    d["length"] = to_numpy(std::move(len), {n});
+    d["t_surface"] = to_numpy(std::move(t_surface), {n});
+    d["path"] = to_numpy(std::move(path), {n});
+    d["medium"] = to_numpy(std::move(medium), {n});
+    d["depth"] = to_numpy(std::move(depth), {n});
+    d["scattered"] = to_numpy(std::move(scattered), {n});
+    return d;
+}
+
+}  // namespace
+
+void bind_lt(nb::module_ &m) {
+    nb::class_<LightPathTracer>(m, "LightPathTracer")
+        .def(nb::init<std::shared_ptr<const Scene>, int, int, uint64_t, int64_t, int, int64_t>(), "scene"_a,
+             "max_depth"_a, "rr_depth"_a, "seed"_a, "paths_per_iteration"_a, "threads"_a, "max_records"_a)
+        .def("set_emission_media", &LightPathTracer::set_emission_media, "per_triangle"_a, "per_light"_a)
+        .def("set_recording", &LightPathTracer::set_recording, "vertices"_a, "segments"_a)
+        .def_prop_ro("capacity", &LightPathTracer::capacity)
+        .def_prop_ro("paths_per_iteration", &LightPathTracer::paths_per_iteration)
+        .def("begin_iteration",
+             [](LightPathTracer &lp, int64_t it, Array<float> o, Array<float> d, Array<float> t) {
+                 RayBuffers b = ray_buffers(o, d, t);
+                 check_len(b.capacity, lp.capacity(), "ray buffers");
+                 nb::gil_scoped_release release;
+                 return lp.begin_iteration(it, b);
+             })
+        .def("scatter",
+             [](LightPathTracer &lp, Array<float> tfar, Array<int32_t> prim, Array<float> u, Array<float> v) {
+                 Hits h = hits_of(tfar, prim, u, v);
+                 nb::gil_scoped_release release;
+                 lp.scatter(h);
+             })
+        .def("next_rays",
+             [](LightPathTracer &lp, Array<float> o, Array<float> d, Array<float> t) {
+                 RayBuffers b = ray_buffers(o, d, t);
+                 nb::gil_scoped_release release;
+                 return lp.next_rays(b);
+             })
+        .def("vertices", [](const LightPathTracer &lp) { return vertex_arrays(lp.vertices()); })
+        .def("segments", [](const LightPathTracer &lp) { return segment_arrays(lp.segments()); })
+        .def_prop_ro("vertex_count", [](const LightPathTracer &lp) { return lp.vertices().size(); })
+        .def_prop_ro("segment_count", [](const LightPathTracer &lp) { return lp.segments().size(); })
+        .def_prop_ro("density_lookups", &LightPathTracer::density_lookups)
+        .def_prop_ro("paths_traced", &LightPathTracer::paths_traced);
+
+    nb::class_<LightTracer>(m, "LightTracer")
+        .def(nb::init<std::shared_ptr<const Scene>, uint64_t, int>(), "scene"_a, "seed"_a, "threads"_a)
+        .def("connect",
+             [](LightTracer &lt, const LightPathTracer &paths) {
+                 nb::gil_scoped_release release;
+                 return lt.connect(paths);
+             })
+        .def("shadow_rays",
+             [](LightTracer &lt, Array<float> o, Array<float> d, Array<float> t) {
+                 RayBuffers b = ray_buffers(o, d, t);
+                 nb::gil_scoped_release release;
+                 return lt.shadow_rays(b);
+             })
+        .def("resolve_shadows",
+             [](LightTracer &lt, Array<float> tfar, Array<int32_t> prim) {
+                 Hits h{tfar.data(), nullptr, nullptr, prim.data(), prim.shape(0)};
+                 nb::gil_scoped_release release;
+                 lt.resolve_shadows(h);
+             })
+        .def_prop_ro("pending", &LightTracer::pending)
+        .def("end_iteration", &LightTracer::end_iteration, nb::call_guard<nb::gil_scoped_release>())
+        .def("image", [](const LightTracer &lt) { return film_image(lt.film()); })
+        .def_prop_ro("iterations", [](const LightTracer &lt) { return lt.film().samples_per_pixel; })
+        .def_prop_ro("nonfinite", [](const LightTracer &lt) { return lt.film().nonfinite; })
+        .def_prop_ro("density_lookups", &LightTracer::density_lookups)
+        .def_prop_ro("light_paths", &LightTracer::light_paths);
+}
+
+}  // namespace pgi::bind
