@@ -9,10 +9,11 @@ import numpy as np
 
 from . import _core
 from .errors import PgiError
-from .scene.model import Camera, DirectionalLight, Film, PointLight, Scene, SpotLight
+from .scene.model import Camera, DirectionalLight, Film, Medium, PointLight, Scene, SpotLight
 
 _MATERIAL_TYPES = {"diffuse": 0, "mirror": 1, "dielectric": 2, "null": 3}
-_PHASE_TYPES = {"isotropic": 0, "hg": 1}
+_PHASE_TYPES = {"isotropic": 0, "hg": 1, "rayleigh": 2, "tabulated": 3}
+_ESTIMATORS = {"delta": 0, "ratio": 1, "residual": 2, "raymarch": 3}
 # Voxels per majorant cell: small enough to follow a plume's shape, large
 # enough that the DDA does not dominate.
 MAJORANT_CELL = 4
@@ -57,6 +58,41 @@ def camera_basis(camera: Camera, film: Film) -> tuple[np.ndarray, np.ndarray, np
     return forward, -left * tan_x, up * tan_y
 
 
+def march_step(medium: Medium, integrator_step: float) -> float:
+    """Ray-marching step in world units: the scene's, or half the grid's smallest voxel."""
+    if integrator_step > 0:
+        return integrator_step
+    assert medium.density is not None and medium.to_world is not None
+    voxel = np.linalg.norm(medium.to_world[:3, :3], axis=0) / np.array(medium.density.shape)
+    return 0.5 * float(voxel.min())
+
+
+def _add_medium(core: _core.Scene, m: Medium, scene: Scene) -> int:
+    """Describe one medium to the core; returns its id."""
+    phase, g = _PHASE_TYPES[m.phase.type], float(m.phase.g)
+    if m.type == "homogeneous":
+        sigma_t = tuple(float(s) * m.scale for s in m.sigma_t)
+        medium_id = core.add_homogeneous_medium(sigma_t, tuple(m.albedo), phase, g)
+    else:
+        density_zyx = np.ascontiguousarray(np.transpose(m.density, (2, 1, 0)), np.float32)
+        world_to_local = np.linalg.inv(np.asarray(m.to_world, np.float64))
+        medium_id = core.add_grid_medium(
+            density_zyx,
+            np.ascontiguousarray(world_to_local[:3]),
+            float(m.sigma_t[0]) * m.scale,
+            tuple(m.albedo),
+            phase,
+            g,
+            MAJORANT_CELL,
+        )
+        estimator = scene.integrator.estimator
+        step = march_step(m, scene.integrator.march_step)
+        _core.configure_medium(core, medium_id, _ESTIMATORS[estimator], step)
+    if m.phase.type == "tabulated":
+        _core.set_phase_table(core, medium_id, np.ascontiguousarray(m.phase.values, np.float64))
+    return medium_id
+
+
 def build_native_scene(scene: Scene) -> NativeScene:
     """Flatten shapes into one triangle list and describe everything else to the core."""
     core = _core.Scene()
@@ -65,24 +101,7 @@ def build_native_scene(scene: Scene) -> NativeScene:
         material_ids[name] = core.add_material(
             _MATERIAL_TYPES[m.type], tuple(map(float, m.reflectance)), float(m.ior)
         )
-    medium_ids = {}
-    for name, m in scene.media.items():
-        phase, g = _PHASE_TYPES[m.phase.type], float(m.phase.g)
-        if m.type == "homogeneous":
-            sigma_t = tuple(float(s) * m.scale for s in m.sigma_t)
-            medium_ids[name] = core.add_homogeneous_medium(sigma_t, tuple(m.albedo), phase, g)
-        else:
-            density_zyx = np.ascontiguousarray(np.transpose(m.density, (2, 1, 0)), np.float32)
-            world_to_local = np.linalg.inv(np.asarray(m.to_world, np.float64))
-            medium_ids[name] = core.add_grid_medium(
-                density_zyx,
-                np.ascontiguousarray(world_to_local[:3]),
-                float(m.sigma_t[0]) * m.scale,
-                tuple(m.albedo),
-                phase,
-                g,
-                MAJORANT_CELL,
-            )
+    medium_ids = {name: _add_medium(core, m, scene) for name, m in scene.media.items()}
 
     def medium(name: str | None) -> int:
         return -1 if name is None else medium_ids[name]

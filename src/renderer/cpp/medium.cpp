@@ -1,5 +1,7 @@
 #include "medium.h"
 
+#include <limits>
+
 namespace pgi {
 
 void DensityGrid::build_majorants(int cell_size) {
@@ -8,6 +10,7 @@ void DensityGrid::build_majorants(int cell_size) {
     my = (ny + cell - 1) / cell;
     mz = (nz + cell - 1) / cell;
     majorants.assign(size_t(mx) * my * mz, 0.0f);
+    minorants.assign(size_t(mx) * my * mz, 0.0f);
     // Cell c spans voxel coordinates [c * cell, (c + 1) * cell) * (res / (m * cell));
     // trilinear lookups there read voxels floor(u - 0.5) .. floor(u - 0.5) + 1.
     auto voxel_range = [](int c, int m, int n, int &lo, int &hi) {
@@ -22,12 +25,19 @@ void DensityGrid::build_majorants(int cell_size) {
                 voxel_range(cx, mx, nx, x0, x1);
                 voxel_range(cy, my, ny, y0, y1);
                 voxel_range(cz, mz, nz, z0, z1);
-                float m = 0;
+                float hi = 0, lo = std::numeric_limits<float>::max();
                 for (int z = z0; z <= z1; ++z)
                     for (int y = y0; y <= y1; ++y)
-                        for (int x = x0; x <= x1; ++x) m = std::max(m, voxel(x, y, z));
-                // A small margin keeps float rounding of the interpolation below the bound.
-                majorants[(size_t(cz) * my + cy) * mx + cx] = m * 1.0001f;
+                        for (int x = x0; x <= x1; ++x) {
+                            float v = voxel(x, y, z);
+                            hi = std::max(hi, v);
+                            lo = std::min(lo, v);
+                        }
+                // Interpolated values are convex combinations of these voxels; small
+                // margins keep float rounding of the interpolation inside the bounds.
+                size_t index = (size_t(cz) * my + cy) * mx + cx;
+                majorants[index] = hi * 1.0001f;
+                minorants[index] = std::max(0.0f, lo * 0.9999f);
             }
 }
 

@@ -1,6 +1,15 @@
-// Participating media: homogeneous (closed forms) and a density grid with a
-// majorant grid traversed by DDA, sampled by delta tracking (Woodcock et al.
-// 1965) and ratio tracking (Novak et al. 2014) for transmittance.
+// Participating media: homogeneous (closed forms) and a density grid with
+// majorant and minorant grids traversed by DDA. Free flights are sampled by
+// delta tracking (Woodcock et al. 1965) against the per-cell majorant; the
+// transmittance estimator is chosen per medium:
+//   Delta     track-length estimator: delta tracking, 1 if no real collision;
+//   Ratio     ratio tracking (Cramer 1978; Novak et al. 2014, sec. 4.1);
+//   Residual  residual ratio tracking (Novak et al. 2014, sec. 4.2): per majorant
+//             cell the control extinction is the cell's minimum, its transmittance
+//             is taken in closed form and only the residual is ratio tracked;
+//   RayMarch  fixed-step ray marching with one random offset per ray (biased:
+//             exp of an unbiased optical-depth estimate), the classic baseline;
+//             with it free flights are also found by marching (biased too).
 #pragma once
 
 #include <vector>
@@ -12,6 +21,7 @@
 namespace pgi {
 
 enum class MediumType : int { Homogeneous = 0, Grid = 1 };
+enum class Estimator : int { Delta = 0, Ratio = 1, Residual = 2, RayMarch = 3 };
 
 // Density grid on the unit cube placed by an affine map; trilinear
 // interpolation with voxel centres at (i + 0.5) / res and clamped edges, as
@@ -24,6 +34,9 @@ struct DensityGrid {
     int cell = 4;  // voxels per majorant cell along each axis
     int mx = 0, my = 0, mz = 0;
     std::vector<float> majorants;
+    // Minorant grid: each cell's lower bound of the interpolated density (the
+    // control extinction of residual ratio tracking).
+    std::vector<float> minorants;
 
     float voxel(int x, int y, int z) const {
         x = std::clamp(x, 0, nx - 1);
@@ -66,11 +79,14 @@ struct Medium {
     Phase phase;
     DensityGrid grid;  // grid only
     double grid_sigma = 0;  // grid: extinction = grid_sigma * density (gray)
+    Estimator estimator = Estimator::Ratio;  // grid: transmittance estimator
+    double march_step = 0;  // grid, RayMarch: step length in world units along the ray
 };
 
 // Counts of work done by media estimators, summed per thread.
 struct MediumStats {
     uint64_t density_lookups = 0;
+    uint64_t segments = 0;  // ray segments tracked through grid media (both estimators)
 };
 
 // exp(-sigma * t) per channel, with zero extinction meaning 1 even at t = inf.
@@ -87,10 +103,11 @@ struct FreeFlight {
     RGB weight{1.0};  // throughput factor: sigma_s * Tr / pdf, or Tr / pdf on passing
 };
 
-// Visits majorant cells along the ray (world origin o, direction d) over
-// [0, tmax): calls visit(t0, t1, sigma_majorant) in order until it returns false.
+// Visits the majorant cells along the ray (world origin o, unit direction d)
+// over [0, tmax), in order: visit(t0, t1, sigma_majorant, sigma_minorant) for
+// each, until it returns false.
 template <typename Visit>
-void traverse_majorants(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax, Visit &&visit) {
+void traverse_cells(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax, Visit &&visit) {
     const DensityGrid &g = m.grid;
     Vec3 ol = g.to_local(o), dl = g.dir_to_local(d);
     // Clip to the unit cube.
@@ -132,13 +149,21 @@ void traverse_majorants(const Medium &m, const Vec3 &o, const Vec3 &d, double tm
     while (t < t1) {
         int a = (next_t[0] < next_t[1]) ? (next_t[0] < next_t[2] ? 0 : 2) : (next_t[1] < next_t[2] ? 1 : 2);
         double t_exit = std::min(next_t[a], t1);
-        float maj = g.majorants[(size_t(cell[2]) * g.my + cell[1]) * g.mx + cell[0]];
-        if (t_exit > t && !visit(t, t_exit, maj * m.grid_sigma)) return;
+        size_t index = (size_t(cell[2]) * g.my + cell[1]) * g.mx + cell[0];
+        if (t_exit > t &&
+            !visit(t, t_exit, g.majorants[index] * m.grid_sigma, g.minorants[index] * m.grid_sigma))
+            return;
         t = t_exit;
         cell[a] += step[a];
         if (cell[a] < 0 || cell[a] >= res[a]) return;
         next_t[a] += delta_t[a];
     }
+}
+
+// As traverse_cells, with visit(t0, t1, sigma_majorant).
+template <typename Visit>
+void traverse_majorants(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax, Visit &&visit) {
+    traverse_cells(m, o, d, tmax, [&](double t0, double t1, double maj, double) { return visit(t0, t1, maj); });
 }
 
 // Extinction at a world point of a grid medium.
@@ -147,9 +172,61 @@ inline double grid_sigma_t(const Medium &m, const Vec3 &p, MediumStats &stats) {
     return m.grid_sigma * m.grid.density_local(m.grid.to_local(p));
 }
 
+// Delta tracking over [0, tmax) against the per-cell majorants: the distance of
+// the first real collision, or infinity.
+inline double delta_track(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax, Sampler &rng,
+                          MediumStats &stats) {
+    double hit = kInf;
+    traverse_majorants(m, o, d, tmax, [&](double t0, double t1, double maj) {
+        if (maj <= 0) return true;
+        double t = t0;
+        while (true) {
+            t -= std::log1p(-rng.next()) / maj;
+            if (t >= t1) return true;
+            if (rng.next() * maj < grid_sigma_t(m, o + d * t, stats)) {
+                hit = t;
+                return false;
+            }
+        }
+    });
+    return hit;
+}
+
+// Fixed-step ray marching over [0, tmax): each step [s, s + len) is represented
+// by the extinction at s + u * len (one u per ray), which makes the optical depth
+// unbiased and everything computed from it biased. Cells with a zero majorant
+// are skipped without lookups. step(s, len, sigma) returns false to stop.
+template <typename Step>
+void ray_march(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax, Sampler &rng,
+               MediumStats &stats, Step &&step) {
+    double h = m.march_step > 0 ? m.march_step : kInf;
+    double u = rng.next();
+    double s = -1;  // start of the current step, set at the first cell
+    double end = 0;
+    // The end of the marched range is the clip of [0, tmax) to the grid: find it first.
+    traverse_majorants(m, o, d, tmax, [&](double t0, double t1, double) {
+        if (s < 0) s = t0;
+        end = t1;
+        return true;
+    });
+    if (s < 0) return;
+    traverse_majorants(m, o, d, tmax, [&](double, double t1, double maj) {
+        while (s < end) {
+            double len = std::min(h, end - s);
+            double x = s + u * len;
+            if (x >= t1) return true;  // the sample point lies in a later cell
+            double sigma = maj > 0 ? grid_sigma_t(m, o + d * x, stats) : 0.0;
+            if (!step(s, len, sigma)) return false;
+            s += len;
+        }
+        return false;
+    });
+}
+
 // Distance sampling. Homogeneous media use the closed form with single-sample
 // MIS over the RGB channels (the hero channel is picked uniformly); grids use
-// delta tracking against the per-cell majorant (extinction is gray there).
+// delta tracking against the per-cell majorant (extinction is gray there), or
+// marching for the RayMarch estimator.
 inline FreeFlight sample_free_flight(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax,
                                      Sampler &rng, MediumStats &stats) {
     FreeFlight f;
@@ -171,42 +248,79 @@ inline FreeFlight sample_free_flight(const Medium &m, const Vec3 &o, const Vec3 
         }
         return f;
     }
-    traverse_majorants(m, o, d, tmax, [&](double t0, double t1, double maj) {
-        if (maj <= 0) return true;
-        double t = t0;
-        while (true) {
-            t -= std::log1p(-rng.next()) / maj;
-            if (t >= t1) return true;
-            double sigma = grid_sigma_t(m, o + d * t, stats);
-            if (rng.next() * maj < sigma) {
-                f.scattered = true;
-                f.t = t;
-                f.weight = m.albedo;
-                return false;
+    ++stats.segments;
+    if (m.estimator == Estimator::RayMarch) {
+        double target = -std::log1p(-rng.next()), tau = 0;
+        ray_march(m, o, d, tmax, rng, stats, [&](double s, double len, double sigma) {
+            if (tau + sigma * len < target) {
+                tau += sigma * len;
+                return true;
             }
-        }
-    });
+            f.scattered = true;
+            f.t = s + (target - tau) / sigma;
+            f.weight = m.albedo;
+            return false;
+        });
+        return f;
+    }
+    double t = delta_track(m, o, d, tmax, rng, stats);
+    if (t < kInf) {
+        f.scattered = true;
+        f.t = t;
+        f.weight = m.albedo;
+    }
     return f;
 }
 
-// Transmittance over [0, tmax): closed form, or ratio tracking in grids.
+// Transmittance over [0, tmax): closed form in homogeneous media, the medium's
+// estimator in grids.
 inline RGB transmittance(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax, Sampler &rng,
                          MediumStats &stats) {
     if (m.type == MediumType::Homogeneous) {
         return beer_lambert(m.sigma_t, tmax);
     }
+    ++stats.segments;
     double tr = 1;
-    traverse_majorants(m, o, d, tmax, [&](double t0, double t1, double maj) {
-        if (maj <= 0) return true;
-        double t = t0;
-        while (true) {
-            t -= std::log1p(-rng.next()) / maj;
-            if (t >= t1) return true;
-            tr *= 1 - grid_sigma_t(m, o + d * t, stats) / maj;
-            if (tr == 0) return false;
+    switch (m.estimator) {
+        case Estimator::Delta:
+            return RGB(delta_track(m, o, d, tmax, rng, stats) < kInf ? 0.0 : 1.0);
+        case Estimator::RayMarch: {
+            double tau = 0;
+            ray_march(m, o, d, tmax, rng, stats, [&](double, double len, double sigma) {
+                tau += sigma * len;
+                return true;
+            });
+            return RGB(std::exp(-tau));
         }
-    });
-    return RGB(tr);
+        case Estimator::Residual:
+            traverse_cells(m, o, d, tmax, [&](double t0, double t1, double maj, double minor) {
+                if (maj <= 0) return true;
+                tr *= std::exp(-minor * (t1 - t0));  // the control, in closed form
+                double residual = maj - minor;
+                if (!(residual > 0)) return true;  // constant cell: the control is exact
+                double t = t0;
+                while (true) {
+                    t -= std::log1p(-rng.next()) / residual;
+                    if (t >= t1) return true;
+                    // (sigma - minor) / residual is the residual's null-collision ratio.
+                    tr *= std::max(0.0, maj - grid_sigma_t(m, o + d * t, stats)) / residual;
+                    if (tr == 0) return false;
+                }
+            });
+            return RGB(tr);
+        default:
+            traverse_majorants(m, o, d, tmax, [&](double t0, double t1, double maj) {
+                if (maj <= 0) return true;
+                double t = t0;
+                while (true) {
+                    t -= std::log1p(-rng.next()) / maj;
+                    if (t >= t1) return true;
+                    tr *= 1 - grid_sigma_t(m, o + d * t, stats) / maj;
+                    if (tr == 0) return false;
+                }
+            });
+            return RGB(tr);
+    }
 }
 
 }  // namespace pgi

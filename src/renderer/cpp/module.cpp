@@ -237,4 +237,5 @@ NB_MODULE(_core, m) {
     add_sampling_probes(m);
     bind_pt(m);
     bind_lt(m);
+    bind_media(m);
 }

@@ -48,6 +48,7 @@ TOP_KEYS = {
 INCLUDABLE = {"camera", "film", "integrator", "materials", "media", "shapes", "lights"}
 FOV_AXES = ("x", "y", "diagonal", "smaller", "larger")
 MESH_SUFFIXES = (".ply", ".obj")
+ESTIMATORS = ("delta", "ratio", "residual", "raymarch")
 
 KeyPath = tuple[str | int, ...]
 
@@ -427,31 +428,153 @@ def _material(val: _Validator, name: str, d: Any) -> Material:
     return Material(name, kind)
 
 
+PHASES = ("isotropic", "hg", "rayleigh", "tabulated", "mie")
+
+
 def _phase(val: _Validator, d: Any, p: KeyPath) -> Phase:
-    kind = val.kind(d, p, ("isotropic", "hg"))
-    if kind == "isotropic":
+    kind = val.kind(d, p, PHASES)
+    if kind in ("isotropic", "rayleigh"):
         val.mapping(d, p, required=("type",))
-        return Phase("isotropic")
-    val.mapping(d, p, required=("type", "g"))
-    return Phase("hg", g=val.number(d["g"], p + ("g",), lo=-1, hi=1, lo_open=True, hi_open=True))
+        return Phase(kind)
+    if kind == "hg":
+        val.mapping(d, p, required=("type", "g"))
+        g = val.number(d["g"], p + ("g",), lo=-1, hi=1, lo_open=True, hi_open=True)
+        return Phase("hg", g=g)
+    if kind == "tabulated":
+        val.mapping(d, p, required=("type",), optional=("values", "file"))
+        if ("values" in d) == ("file" in d):
+            val.fail(p, "give either values (a list) or file (.npy or text), not both")
+        if "values" in d:
+            raw = d["values"]
+            if not isinstance(raw, list):
+                val.fail(p + ("values",), f"expected a list of numbers, got {_describe(raw)}")
+            values = np.array([val.number(x, p + ("values", i), lo=0) for i, x in enumerate(raw)])
+        else:
+            file = val.o.file(p).parent / val.string(d["file"], p + ("file",))
+            try:
+                values = np.load(file) if file.suffix == ".npy" else np.loadtxt(file)
+            except (OSError, ValueError) as e:
+                val.fail(p + ("file",), f"cannot read {file}: {e}")
+            values = np.asarray(values, np.float64).ravel()
+            if not np.all(np.isfinite(values)) or np.any(values < 0):
+                val.fail(p + ("file",), f"{file}: values must be finite and >= 0")
+        if len(values) < 2 or not values.sum() > 0:
+            val.fail(p, "a tabulated phase function needs >= 2 values with a positive sum")
+        return Phase("tabulated", values=values)
+    # mie: a Lorenz-Mie table for water droplets, computed at load (renderer.volumes)
+    keys = ("effective_radius", "effective_variance", "wavelength", "ior", "resolution")
+    val.mapping(d, p, required=("type",), optional=keys)
+    from renderer.volumes import mie_phase_table
+
+    table = mie_phase_table(
+        val.number(d.get("effective_radius", 2.0), p + ("effective_radius",), lo=0.01, hi=50),
+        val.number(d.get("effective_variance", 0.1), p + ("effective_variance",), lo=0.01, hi=0.5),
+        val.number(d.get("wavelength", 0.55), p + ("wavelength",), lo=0.1, hi=10),
+        val.number(d.get("ior", 1.333), p + ("ior",), lo=1.0, lo_open=True),
+        val.integer(d.get("resolution", 2048), p + ("resolution",), 16, 1 << 16),
+    )
+    return Phase("tabulated", values=np.array(table))
 
 
-def _load_density(val: _Validator, v: Any, p: KeyPath) -> tuple[np.ndarray, Path]:
-    file = val.o.file(p).parent / val.string(v, p)
-    if not file.is_file():
-        val.fail(p, f"density file not found: {file}")
+DENSITY_SOURCES = ("npy", "vdb", "perlin", "step")
+
+
+def _load_npy(val: _Validator, file: Path, p: KeyPath) -> np.ndarray:
     try:
         a = np.load(file, allow_pickle=False)
     except (OSError, ValueError) as e:
         val.fail(p, f"cannot read {file} as a .npy array: {e}")
     if not isinstance(a, np.ndarray) or a.ndim != 3 or a.dtype.kind not in "fiu" or 0 in a.shape:
         val.fail(p, f"{file}: expected a 3-D numeric array indexed [x, y, z], got {_describe(a)}")
+    return a
+
+
+def _resolution(val: _Validator, v: Any, p: KeyPath) -> tuple[int, int, int]:
+    if isinstance(v, list):
+        if len(v) != 3:
+            val.fail(p, f"expected a number or [x, y, z], got {_describe(v)}")
+        return tuple(val.integer(n, p + (i,), 1, 1024) for i, n in enumerate(v))  # type: ignore
+    n = val.integer(v, p, 1, 1024)
+    return (n, n, n)
+
+
+def _load_density(
+    val: _Validator, v: Any, p: KeyPath
+) -> tuple[np.ndarray, np.ndarray | None, Path]:
+    """The baked density [x, y, z] of a grid medium, the 4x4 placing its unit cube that the
+    source itself defines (an OpenVDB transform; None otherwise), and where it came from.
+
+    ``v`` is a file name (.npy or .vdb) or a mapping with a ``type`` in DENSITY_SOURCES."""
+    here = val.o.file(p).parent
+    if isinstance(v, str):
+        kind = "vdb" if v.lower().endswith(".vdb") else "npy"
+        d: dict = {"type": kind, "file": v}
+    else:
+        d = v
+        kind = val.kind(d, p, DENSITY_SOURCES)
+    placement = None
+    source = val.o.file(p)
+    if kind in ("npy", "vdb"):
+        optional = ("grid", "bbox") if kind == "vdb" else ()
+        val.mapping(d, p, required=("type", "file"), optional=optional)
+        file = here / val.string(d["file"], p + ("file",))
+        source = file
+        if not file.is_file():
+            val.fail(p, f"density file not found: {file}")
+        if kind == "npy":
+            a = _load_npy(val, file, p)
+        else:
+            from renderer.volumes import read_vdb
+
+            bbox = None
+            if "bbox" in d:
+                b = d["bbox"]
+                if not (isinstance(b, list) and len(b) == 2 and
+                        all(isinstance(r, list) and len(r) == 3 for r in b)):  # fmt: skip
+                    val.fail(p + ("bbox",), "expected [[i0, j0, k0], [i1, j1, k1]] (inclusive)")
+                bbox = tuple(
+                    tuple(val.integer(x, p + ("bbox", r, c), -(2**31)) for c, x in enumerate(row))
+                    for r, row in enumerate(b)
+                )
+            grid = val.string(d.get("grid", "density"), p + ("grid",))
+            try:
+                a, placement = read_vdb(file, grid, bbox)
+            except PgiError as e:
+                val.fail(p, str(e))
+    elif kind == "perlin":
+        keys = ("octaves", "frequency", "lacunarity", "gain", "offset", "seed")
+        val.mapping(d, p, required=("type", "resolution"), optional=keys)
+        from renderer.volumes import perlin_density
+
+        a = perlin_density(
+            _resolution(val, d["resolution"], p + ("resolution",)),
+            octaves=val.integer(d.get("octaves", 4), p + ("octaves",), 1, 16),
+            frequency=val.number(d.get("frequency", 4.0), p + ("frequency",), lo=0),
+            lacunarity=val.number(d.get("lacunarity", 2.0), p + ("lacunarity",), lo=0),
+            gain=val.number(d.get("gain", 0.5), p + ("gain",), lo=0),
+            offset=val.number(d.get("offset", 0.0), p + ("offset",)),
+            seed=val.integer(d.get("seed", 0), p + ("seed",), 0),
+        )
+    else:  # step
+        val.mapping(d, p, required=("type", "resolution", "values"), optional=("axis", "position"))
+        from renderer.volumes import step_density
+
+        values = d["values"]
+        if not isinstance(values, list) or len(values) != 2:
+            val.fail(p + ("values",), f"expected [below, above], got {_describe(values)}")
+        axis = val.string(d.get("axis", "x"), p + ("axis",), ("x", "y", "z"))
+        a = step_density(
+            _resolution(val, d["resolution"], p + ("resolution",)),
+            axis="xyz".index(axis),
+            position=val.number(d.get("position", 0.5), p + ("position",), lo=0, hi=1),
+            values=tuple(val.number(x, p + ("values", i), lo=0) for i, x in enumerate(values)),
+        )
     if not np.all(np.isfinite(a)):
-        val.fail(p, f"{file}: density has non-finite values")
+        val.fail(p, f"{source}: density has non-finite values")
     if a.min() < 0:
         idx = tuple(int(i) for i in np.unravel_index(np.argmin(a), a.shape))
-        val.fail(p, f"{file}: density must be >= 0, got {a.min():g} at [x, y, z] = {list(idx)}")
-    return np.ascontiguousarray(a, dtype=np.float32), file
+        val.fail(p, f"{source}: density must be >= 0, got {a.min():g} at [x, y, z] = {list(idx)}")
+    return np.ascontiguousarray(a, dtype=np.float32), placement, source
 
 
 def _medium(val: _Validator, name: str, d: Any) -> Medium:
@@ -470,8 +593,10 @@ def _medium(val: _Validator, name: str, d: Any) -> Medium:
     phase = _phase(val, d["phase"], p + ("phase",)) if "phase" in d else Phase()
     if kind == "homogeneous":
         return Medium(name, kind, sigma_t, albedo, scale, phase)
-    density, source = _load_density(val, d["density"], p + ("density",))
+    density, placement, source = _load_density(val, d["density"], p + ("density",))
     to_world = val.transform(d.get("transform", []), p + ("transform",))
+    if placement is not None:  # an OpenVDB file places its grid; the transform moves it on
+        to_world = to_world @ placement
     if abs(np.linalg.det(to_world[:3, :3])) < 1e-12:
         val.fail(p + ("transform",), "is singular: the grid's box would have no volume")
     return Medium(name, kind, sigma_t, albedo, scale, phase, density, to_world, source)
@@ -594,11 +719,17 @@ def load_scene(path: str | Path, overrides: Sequence[str] = ()) -> Scene:
     film = Film(val.integer(film_doc["width"], ("film", "width"), 1),
                 val.integer(film_doc["height"], ("film", "height"), 1))  # fmt: skip
     integ = val.mapping(
-        doc.get("integrator") or {}, ("integrator",), optional=("max_depth", "rr_depth")
+        doc.get("integrator") or {},
+        ("integrator",),
+        optional=("max_depth", "rr_depth", "estimator", "march_step"),
     )
     integrator = Integrator(
         max_depth=val.integer(integ.get("max_depth", -1), ("integrator", "max_depth"), -1),
         rr_depth=val.integer(integ.get("rr_depth", 5), ("integrator", "rr_depth"), 1),
+        estimator=val.string(
+            integ.get("estimator", "ratio"), ("integrator", "estimator"), ESTIMATORS
+        ),
+        march_step=val.number(integ.get("march_step", 0.0), ("integrator", "march_step"), lo=0),
     )
 
     shapes_doc = doc["shapes"]

@@ -61,6 +61,11 @@ def _phase(p: Phase) -> dict[str, Any]:
         return {"type": "isotropic"}
     if p.type == "hg":
         return {"type": "hg", "g": float(p.g)}
+    if p.type == "rayleigh":
+        return {"type": "rayleigh"}
+    if p.type == "tabulated":
+        assert p.values is not None
+        return {"type": "tabphase", "values": ", ".join(repr(float(v)) for v in p.values)}
     raise PgiError(f"phase function {p.type!r} has no Mitsuba equivalent here")
 
 

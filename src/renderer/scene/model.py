@@ -46,6 +46,11 @@ class Film:
 class Integrator:
     max_depth: int = -1  # Mitsuba's meaning: 1 = emitters only, 2 = direct light; -1 = unlimited
     rr_depth: int = 5  # Russian roulette starts at this depth, as in Mitsuba
+    # Transmittance estimator in density grids: "delta", "ratio", "residual" or "raymarch"
+    # (ours only; Mitsuba's volpath always uses its own). march_step: raymarch step length in
+    # world units, 0 = half the grid's smallest voxel.
+    estimator: str = "ratio"
+    march_step: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -58,8 +63,11 @@ class Material:
 
 @dataclass(frozen=True)
 class Phase:
-    type: str = "isotropic"  # "isotropic" or "hg"
+    type: str = "isotropic"  # "isotropic", "hg", "rayleigh" or "tabulated"
     g: float = 0.0  # HG asymmetry; g > 0 scatters forward
+    # tabulated only: values at cos(theta) = linspace(-1, 1, n) (+1 forward), linearly
+    # interpolated and normalised (Mitsuba's tabphase)
+    values: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
