@@ -36,8 +36,9 @@ void DensityGrid::build_majorants(int cell_size) {
                 // Interpolated values are convex combinations of these voxels; small
                 // margins keep float rounding of the interpolation inside the bounds.
                 size_t index = (size_t(cz) * my + cy) * mx + cx;
-                majorants[index] = hi * 1.0001f;
-                minorants[index] = std::max(0.0f, lo * 0.9999f);
+                // A constant cell keeps exact bounds: residual tracking is then free there.
+                majorants[index] = lo == hi ? hi : hi * 1.0001f;
+                minorants[index] = lo == hi ? lo : std::max(0.0f, lo * 0.9999f);
             }
 }
 
