@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_media import GridRef, affine, smooth_density
 
 import stats
 from renderer import _core
@@ -27,6 +26,7 @@ from renderer.volumes import (
     voxel_centres,
     write_vdb,
 )
+from test_media import GridRef, affine, smooth_density
 
 ESTIMATORS = {"delta": 0, "ratio": 1, "residual": 2, "raymarch": 3}
 UNBIASED = ["delta", "ratio", "residual"]
