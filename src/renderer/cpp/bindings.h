@@ -73,6 +73,7 @@ inline NumpyOut<double> film_image(const Film &f) {
 // One per method file; module.cpp calls each.
 void bind_pt(nb::module_ &m);
 void bind_lt(nb::module_ &m);
+void bind_pm(nb::module_ &m);
 void bind_media(nb::module_ &m);
 
 }  // namespace pgi::bind

@@ -237,5 +237,6 @@ NB_MODULE(_core, m) {
     add_sampling_probes(m);
     bind_pt(m);
     bind_lt(m);
+    bind_pm(m);
     bind_media(m);
 }

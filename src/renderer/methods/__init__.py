@@ -32,6 +32,8 @@ class Method(Protocol):
 _METHODS: dict[str, tuple[str, str, str]] = {
     "pt": ("pt", "PathTracing", "volumetric path tracing, next-event estimation and MIS"),
     "lt": ("lt", "LightTracing", "light tracing: light paths connected to the camera"),
+    "pm": ("pm", "PhotonMapping", "photon mapping, volume photons, beam radiance estimate"),
+    "sppm": ("sppm", "StochasticProgressivePhotonMapping", "progressive photon mapping + media"),
     "mitsuba": ("mitsuba", "MitsubaVolpath", "Mitsuba 3 volpath at the same budget"),
 }
 

@@ -12,6 +12,7 @@ import numpy as np
 
 from .. import _core
 from ..engine import _DEGENERATE_AREA, NativeScene
+from ..errors import PgiError
 from ..scene.model import PointLight, Scene, SpotLight
 from ..tracer import EmbreeTracer, RayBatch
 
@@ -190,9 +191,15 @@ class LightPaths:
         self.paths = paths
 
     def trace(self, iteration: int) -> None:
-        """Emit, then trace and scatter until every path of this iteration has ended."""
+        """Emit, then trace and scatter until every path of this iteration has ended.
+
+        Raises PgiError when the records exceed ``max_records`` (the memory bound).
+        """
         kernel, rays = self.kernel, self.rays
-        active = kernel.begin_iteration(iteration, *rays.buffers)
-        while active:
-            kernel.scatter(*self.tracer.intersect(rays, active))
-            active = kernel.next_rays(*rays.buffers)
+        try:
+            active = kernel.begin_iteration(iteration, *rays.buffers)
+            while active:
+                kernel.scatter(*self.tracer.intersect(rays, active))
+                active = kernel.next_rays(*rays.buffers)
+        except ValueError as e:
+            raise PgiError(str(e)) from e

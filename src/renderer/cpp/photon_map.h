@@ -1,0 +1,113 @@
+// Acceleration structure for photon queries: a kd-tree over points (median
+// split on the widest axis, small leaves) with the bounding box of every node.
+// It answers the two queries of photon mapping:
+//   - sphere: every point within r of a position (surface density estimation,
+//     Jensen 1996);
+//   - ray: every point within r of a ray segment [0, tmax], i.e. every photon
+//     disc of radius r (facing the ray) that the segment crosses (the beam
+//     radiance estimate, Jarosz, Zwicker & Jensen 2008).
+// Points are visited in a fixed order (tree order), so sums over a query are
+// deterministic. The tree is built once per iteration and read by many threads.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "common.h"
+
+namespace pgi {
+
+class PointTree {
+public:
+    void build(const std::vector<Vec3> &points);
+    size_t size() const { return points_.size(); }
+    size_t node_count() const { return nodes_.size(); }
+
+    // visit(index, distance^2) for every point with |p - c| < r.
+    template <typename Visit>
+    void query_sphere(const Vec3 &c, double r, Visit &&visit) const {
+        if (nodes_.empty()) return;
+        double r2 = r * r;
+        int stack[kMaxStack];
+        int top = 0;
+        stack[top++] = 0;
+        while (top) {
+            const Node &n = nodes_[stack[--top]];
+            double d2 = 0;
+            for (int a = 0; a < 3; ++a) {
+                double e = std::max({n.lo[a] - c[a], 0.0, c[a] - n.hi[a]});
+                d2 += e * e;
+            }
+            if (d2 >= r2) continue;
+            if (n.left < 0) {
+                for (uint32_t i = n.begin; i < n.end; ++i) {
+                    Vec3 d = points_[i] - c;
+                    double q = dot(d, d);
+                    if (q < r2) visit(order_[i], q);
+                }
+                continue;
+            }
+            stack[top++] = n.left + 1;
+            stack[top++] = n.left;
+        }
+    }
+
+    // visit(index, t, distance^2) for every point whose projection on the ray
+    // (o, unit d) lies in [0, tmax] at distance < r from it.
+    template <typename Visit>
+    void query_ray(const Vec3 &o, const Vec3 &d, double tmax, double r, Visit &&visit) const {
+        if (nodes_.empty()) return;
+        double r2 = r * r;
+        Vec3 inv(1 / d.x, 1 / d.y, 1 / d.z);
+        int stack[kMaxStack];
+        int top = 0;
+        stack[top++] = 0;
+        while (top) {
+            const Node &n = nodes_[stack[--top]];
+            // Slab test against the node's box grown by r.
+            double t0 = 0, t1 = tmax;
+            bool miss = false;
+            for (int a = 0; a < 3 && !miss; ++a) {
+                double lo = n.lo[a] - r, hi = n.hi[a] + r;
+                if (d[a] == 0) {
+                    miss = o[a] < lo || o[a] > hi;
+                    continue;
+                }
+                double ta = (lo - o[a]) * inv[a], tb = (hi - o[a]) * inv[a];
+                if (ta > tb) std::swap(ta, tb);
+                t0 = std::max(t0, ta);
+                t1 = std::min(t1, tb);
+                miss = t0 > t1;
+            }
+            if (miss) continue;
+            if (n.left < 0) {
+                for (uint32_t i = n.begin; i < n.end; ++i) {
+                    Vec3 v = points_[i] - o;
+                    double t = dot(v, d);
+                    if (t < 0 || t > tmax) continue;
+                    double q = dot(v, v) - t * t;
+                    if (q < r2) visit(order_[i], t, std::max(0.0, q));
+                }
+                continue;
+            }
+            stack[top++] = n.left + 1;
+            stack[top++] = n.left;
+        }
+    }
+
+private:
+    static constexpr int kLeafSize = 8;
+    static constexpr int kMaxStack = 128;
+    struct Node {
+        double lo[3], hi[3];
+        uint32_t begin = 0, end = 0;
+        int left = -1;  // children at left and left + 1; -1 for a leaf
+    };
+    void build_node(int node, uint32_t begin, uint32_t end, int depth);
+
+    std::vector<Node> nodes_;
+    std::vector<Vec3> points_;     // in tree order
+    std::vector<uint32_t> order_;  // tree order -> input index
+};
+
+}  // namespace pgi

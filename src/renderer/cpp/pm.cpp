@@ -1,0 +1,231 @@
+// pm / sppm gathering kernel (see pm.h).
+#include "pm.h"
+
+namespace pgi {
+
+constexpr int kMaxGatherNullCrossings = 256;
+// Specular bounces followed when max_depth is unlimited.
+constexpr int kMaxSpecularBounces = 64;
+// A surface photon counts at x only if its surface faces about the same way
+// (cos > 0.5): photons on a perpendicular wall near a corner are another surface.
+constexpr double kNormalAgreement = 0.5;
+constexpr uint64_t kGatherStreamTag = 0x4761746865725061ull;
+
+namespace {
+
+// Transmittance from the camera-path vertex to many distances along one ray:
+// closed form in homogeneous media; in density grids one ratio-tracking walk
+// (Novak et al. 2014) whose running product up to t estimates Tr(0, t) without
+// bias for every t at once.
+class TransmittanceTrack {
+public:
+    TransmittanceTrack(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax, Sampler &rng,
+                       MediumStats &stats)
+        : medium_(m) {
+        if (m.type == MediumType::Homogeneous) return;
+        double tr = 1;
+        traverse_majorants(m, o, d, tmax, [&](double t0, double t1, double maj) {
+            if (maj <= 0) return true;
+            double t = t0;
+            while (true) {
+                t -= std::log1p(-rng.next()) / maj;
+                if (t >= t1) return true;
+                tr *= 1 - grid_sigma_t(m, o + d * t, stats) / maj;
+                steps_.push_back({t, tr});
+                if (tr == 0) return false;
+            }
+        });
+    }
+    RGB at(double t) const {
+        if (medium_.type == MediumType::Homogeneous) return beer_lambert(medium_.sigma_t, t);
+        // Last step before t.
+        size_t lo = 0, hi = steps_.size();
+        while (lo < hi) {
+            size_t mid = (lo + hi) / 2;
+            if (steps_[mid].first < t) lo = mid + 1; else hi = mid;
+        }
+        return RGB(lo == 0 ? 1.0 : steps_[lo - 1].second);
+    }
+
+private:
+    const Medium &medium_;
+    std::vector<std::pair<double, double>> steps_;
+};
+
+}  // namespace
+
+PhotonGatherer::PhotonGatherer(std::shared_ptr<const Scene> scene, int max_depth, uint64_t seed,
+                               int spp_per_iteration, int threads)
+    : scene_(std::move(scene)), max_depth_(max_depth), seed_(seed),
+      spp_per_iteration_(std::max(1, spp_per_iteration)), threads_(std::max(1, threads)),
+      film_(scene_->camera.width, scene_->camera.height) {
+    paths_.resize(size_t(film_.width) * film_.height * spp_per_iteration_);
+}
+
+void PhotonGatherer::build_maps(const LightPathTracer &paths) {
+    surface_photons_.clear();
+    volume_photons_.clear();
+    for (const LightVertex &v : paths.vertices()) {
+        if (v.kind == VertexKind::Surface) surface_photons_.push_back(v);
+        else if (v.kind == VertexKind::Medium) volume_photons_.push_back(v);
+    }
+    inv_light_paths_ = 1.0 / double(paths.paths_per_iteration());
+    std::vector<Vec3> points(surface_photons_.size());
+    for (size_t i = 0; i < points.size(); ++i) points[i] = surface_photons_[i].pos;
+    surface_tree_.build(points);
+    points.resize(volume_photons_.size());
+    for (size_t i = 0; i < points.size(); ++i) points[i] = volume_photons_[i].pos;
+    volume_tree_.build(points);
+    stats_.surface_photons += surface_photons_.size();
+    stats_.volume_photons += volume_photons_.size();
+}
+
+size_t PhotonGatherer::begin_camera(int64_t iteration, const RayBuffers &out) {
+    const Camera &cam = scene_->camera;
+    const int64_t npix = int64_t(cam.width) * cam.height;
+    active_.clear();
+    if (max_depth_ == 0) return 0;
+    if (out.capacity < paths_.size()) throw std::invalid_argument("pm: ray buffers too small");
+    active_.resize(paths_.size());
+#pragma omp parallel for schedule(static) num_threads(threads_)
+    for (int64_t i = 0; i < int64_t(paths_.size()); ++i) {
+        GatherPath &p = paths_[i];
+        int64_t pixel = i % npix;
+        int64_t sample = iteration * spp_per_iteration_ + i / npix;
+        p = GatherPath();
+        p.rng = Sampler(stream_key(seed_ ^ kGatherStreamTag, uint64_t(sample), uint64_t(pixel)));
+        p.pixel = pixel;
+        double fx = double(pixel % cam.width) + p.rng.next();
+        double fy = double(pixel / cam.width) + p.rng.next();
+        p.pos = cam.origin;
+        p.dir = cam.direction(fx, fy);
+        p.medium = cam.medium;
+        p.alive = true;
+        active_[i] = int32_t(i);
+        out.put(i, p.pos, p.dir, kInf);
+    }
+    return active_.size();
+}
+
+// Beam radiance estimate along [0, t_hit] (Jarosz et al. 2008): every volume photon
+// of this medium whose disc crosses the segment, attenuated to the camera-path vertex.
+RGB PhotonGatherer::beam_estimate(const GatherPath &p, double t_hit, double radius, MediumStats &ms,
+                                  uint64_t &accepted) const {
+    const Medium &m = scene_->media[p.medium];
+    Sampler rng = p.rng.split(0x6265616d + uint64_t(p.specular));
+    double tmax = std::isfinite(t_hit) ? t_hit : 1e30;
+    TransmittanceTrack track(m, p.pos, p.dir, tmax, rng, ms);
+    RGB sum(0.0);
+    const double kernel = 1 / (kPi * radius * radius);
+    Vec3 to_camera = -p.dir;
+    volume_tree_.query_ray(p.pos, p.dir, tmax, radius, [&](uint32_t i, double t, double) {
+        const LightVertex &ph = volume_photons_[i];
+        if (ph.medium != p.medium) return;
+        if (max_depth_ >= 0 && ph.depth + p.specular >= max_depth_) return;
+        ++accepted;
+        sum += track.at(t) * ph.power * phase_eval(m.phase, ph.wi, to_camera);
+    });
+    return sum * (kernel * inv_light_paths_);
+}
+
+// Surface density estimate at x (Jensen 1996) with a constant kernel 1 / (pi r^2).
+RGB PhotonGatherer::surface_estimate(const GatherPath &p, int tri, const Vec3 &x, double radius,
+                                     uint64_t &accepted) const {
+    const Scene &scene = *scene_;
+    const Triangle &T = scene.triangles[tri];
+    const Material &mat = scene.materials[T.material];
+    Vec3 wo = -p.dir;
+    if (dot(wo, T.n) <= 0) return RGB(0.0);  // back of a one-sided surface
+    RGB sum(0.0);
+    surface_tree_.query_sphere(x, radius, [&](uint32_t i, double) {
+        const LightVertex &ph = surface_photons_[i];
+        if (max_depth_ >= 0 && ph.depth + p.specular >= max_depth_) return;
+        if (dot(scene.triangles[ph.triangle].n, T.n) < kNormalAgreement) return;
+        if (dot(ph.wi, T.n) <= 0) return;
+        ++accepted;
+        sum += ph.power;
+    });
+    // Diffuse f = reflectance / pi (the only non-delta BSDF).
+    return mat.reflectance * sum * (kInvPi / (kPi * radius * radius) * inv_light_paths_);
+}
+
+void PhotonGatherer::shade(const Hits &hits, double surface_radius, double volume_radius) {
+    const Scene &scene = *scene_;
+    uint64_t lookups = 0, surface_accepted = 0, volume_accepted = 0;
+    const int max_specular = max_depth_ < 0 ? kMaxSpecularBounces : max_depth_;
+#pragma omp parallel for schedule(dynamic, 64) num_threads(threads_) \
+    reduction(+ : lookups, surface_accepted, volume_accepted)
+    for (int64_t k = 0; k < int64_t(hits.count); ++k) {
+        GatherPath &p = paths_[active_[k]];
+        int tri = hits.prim[k];
+        double t_hit = tri >= 0 ? double(hits.tfar[k]) : kInf;
+        if (p.medium >= 0) {
+            MediumStats local;
+            const Medium &m = scene.media[p.medium];
+            p.radiance += p.throughput * beam_estimate(p, t_hit, volume_radius, local, volume_accepted);
+            if (tri >= 0) {
+                Sampler rng = p.rng.split(0x7472 + uint64_t(p.specular));
+                p.throughput *= transmittance(m, p.pos, p.dir, t_hit, rng, local);
+            }
+            lookups += local.density_lookups;
+        }
+        if (tri < 0 || is_black(p.throughput)) {
+            p.alive = false;
+            continue;
+        }
+        const Triangle &T = scene.triangles[tri];
+        const Material &mat = scene.materials[T.material];
+        Vec3 x = T.point(hits.u[k], hits.v[k]);
+        // Emitters seen directly or through specular chains: full weight (no NEE here).
+        if (max_depth_ < 0 || p.specular < max_depth_) p.radiance += p.throughput * scene.emitted(tri, p.dir);
+        if (mat.type == MaterialType::Null) {
+            p.medium = T.medium_after(p.medium, p.dir);
+            p.pos = scene.offset(x, tri, p.dir);
+            p.alive = ++p.null_crossings < kMaxGatherNullCrossings;
+            continue;
+        }
+        if (!mat.is_delta()) {
+            p.radiance += p.throughput * surface_estimate(p, tri, x, surface_radius, surface_accepted);
+            p.alive = false;
+            continue;
+        }
+        // Specular: follow the chain (radiance transport, weights <= 1: no roulette).
+        if (++p.specular >= max_specular) {
+            p.alive = false;
+            continue;
+        }
+        double u1 = p.rng.next(), u2 = p.rng.next(), u3 = p.rng.next();
+        BsdfSample bs = bsdf_sample(mat, T.n, -p.dir, u1, u2, u3, /*radiance=*/true);
+        if (!bs.valid) {
+            p.alive = false;
+            continue;
+        }
+        p.throughput *= bs.weight;
+        p.dir = bs.wi;
+        p.medium = T.medium_after(p.medium, bs.wi);
+        p.pos = scene.offset(x, tri, bs.wi);
+    }
+    medium_stats_.density_lookups += lookups;
+    stats_.surface_lookups += surface_accepted;
+    stats_.volume_lookups += volume_accepted;
+}
+
+size_t PhotonGatherer::next_rays(const RayBuffers &out) {
+    size_t n = 0;
+    for (int32_t i : active_)
+        if (paths_[i].alive) active_[n++] = i;
+    active_.resize(n);
+    for (size_t k = 0; k < n; ++k) {
+        const GatherPath &p = paths_[active_[k]];
+        out.put(k, p.pos, p.dir, kInf);
+    }
+    return n;
+}
+
+void PhotonGatherer::end_iteration() {
+    for (const GatherPath &p : paths_) film_.add(p.pixel, p.radiance);
+    film_.samples_per_pixel += spp_per_iteration_;
+    active_.clear();
+}
+
+}  // namespace pgi

@@ -1,0 +1,98 @@
+// pm: photon mapping with volumetric photons, and the per-iteration estimator
+// that sppm runs with shrinking radii.
+//   Jensen 1996, "Global illumination using photon maps";
+//   Jensen & Christensen 1998, "Efficient simulation of light transport in scenes
+//     with participating media using photon maps";
+//   Jarosz, Zwicker & Jensen 2008, "The beam radiance estimate for volumetric photon mapping";
+//   (sppm) Hachisuka & Jensen 2009, "Stochastic progressive photon mapping";
+//   Knaus & Zwicker 2011, "Progressive photon mapping: a probabilistic approach".
+//
+// One iteration, each step a pass:
+//   1. light paths (lightpath.h): surface photons = vertices on non-delta surfaces,
+//      volume photons = real collisions in media; `build_maps` puts each set in a
+//      kd-tree (photon_map.h).
+//   2. camera paths: `begin_camera` shoots spp_per_iteration rays per pixel (box
+//      filter); `shade` (repeated with `next_rays`) follows each through null
+//      boundaries and specular surfaces (dielectric, mirror) to the first
+//      non-specular surface:
+//        - in a medium, the beam radiance estimate along the traced segment
+//          [0, t_hit] (Jarosz et al. 2008, eq. 15 with a constant 2D kernel):
+//            L += sum_photons Tr(0, t_p) phase(w_p, -d) power_p / (N pi r_v^2)
+//          over the photons of that medium whose disc of radius r_v the segment
+//          crosses; the path then carries Tr(0, t_hit) to the surface;
+//        - emitters hit (directly or through specular chains) add Le;
+//        - at a diffuse surface, the density estimate (Jensen 1996, eq. 6):
+//            L += sum_photons f(w_p, w_o) power_p / (N pi r_s^2)
+//          over surface photons within r_s whose surface faces the same way.
+//   3. `end_iteration`: each path's radiance to its pixel, in path order.
+// A photon of depth k gathered after s specular camera bounces makes a path
+// of s + k real scattering events: it is used iff s + k < max_depth (Mitsuba).
+// The estimate is biased by the kernel (blur over r); pm keeps r fixed, sppm
+// shrinks it per iteration (radius_schedule.h) so the mean of the iterations
+// converges.
+#pragma once
+
+#include <memory>
+
+#include "lightpath.h"
+#include "photon_map.h"
+
+namespace pgi {
+
+struct GatherPath {
+    Vec3 pos, dir;
+    RGB throughput{1.0};
+    RGB radiance{0.0};
+    int64_t pixel = 0;
+    int specular = 0;   // real (specular) scattering events so far
+    int medium = -1;
+    int null_crossings = 0;
+    bool alive = false;
+    Sampler rng;
+};
+
+struct PhotonGatherStats {
+    uint64_t surface_photons = 0, volume_photons = 0;
+    uint64_t surface_lookups = 0, volume_lookups = 0;  // photons accepted by queries
+};
+
+class PhotonGatherer {
+public:
+    PhotonGatherer(std::shared_ptr<const Scene> scene, int max_depth, uint64_t seed, int spp_per_iteration,
+                   int threads);
+
+    size_t capacity() const { return paths_.size(); }
+    // Pass 1: photon maps of this iteration's light paths.
+    void build_maps(const LightPathTracer &paths);
+    // Pass 2: camera rays of iteration `iteration`.
+    size_t begin_camera(int64_t iteration, const RayBuffers &out);
+    // Pass 3 (with next_rays, repeated): estimates along and at the end of each traced ray.
+    void shade(const Hits &hits, double surface_radius, double volume_radius);
+    size_t next_rays(const RayBuffers &out);
+    // Pass 4: path radiance to the film, in path order.
+    void end_iteration();
+
+    const Film &film() const { return film_; }
+    const PhotonGatherStats &stats() const { return stats_; }
+    uint64_t density_lookups() const { return medium_stats_.density_lookups; }
+
+private:
+    RGB beam_estimate(const GatherPath &p, double t_hit, double radius, MediumStats &ms, uint64_t &accepted) const;
+    RGB surface_estimate(const GatherPath &p, int tri, const Vec3 &x, double radius, uint64_t &accepted) const;
+
+    std::shared_ptr<const Scene> scene_;
+    int max_depth_;
+    uint64_t seed_;
+    int spp_per_iteration_, threads_;
+    std::vector<GatherPath> paths_;
+    std::vector<int32_t> active_;
+    // This iteration's photons.
+    std::vector<LightVertex> surface_photons_, volume_photons_;
+    PointTree surface_tree_, volume_tree_;
+    double inv_light_paths_ = 0;
+    Film film_;
+    PhotonGatherStats stats_;
+    MediumStats medium_stats_;
+};
+
+}  // namespace pgi
