@@ -20,7 +20,6 @@ size_t PathTracer::begin_wave(int64_t iteration, const RayBuffers &out) {
     shadow_.clear();
     if (max_depth_ == 0) return 0;  // Mitsuba: max_depth 0 renders black
     active_.resize(paths_.size());
-    shadow_.rays.resize(paths_.size());
 #pragma omp parallel for schedule(static) num_threads(threads_)
     for (int64_t i = 0; i < int64_t(paths_.size()); ++i) {
         CameraPath &p = paths_[i];
@@ -45,11 +44,11 @@ size_t PathTracer::begin_wave(int64_t iteration, const RayBuffers &out) {
 size_t PathTracer::shade(const Hits &hits) {
     const Scene &scene = *scene_;
     uint64_t lookups = 0;
-    shadow_.rays.resize(hits.count);
+    shadow_.reset(hits.count);
 #pragma omp parallel for schedule(dynamic, 256) num_threads(threads_) reduction(+ : lookups)
     for (int64_t k = 0; k < int64_t(hits.count); ++k) {
         CameraPath &p = paths_[active_[k]];
-        shadow_.rays[k].live = false;
+        shadow_[k].live = false;
         int tri = hits.prim[k];
         double t_hit = tri >= 0 ? double(hits.tfar[k]) : kInf;
 
@@ -89,16 +88,14 @@ size_t PathTracer::shade(const Hits &hits) {
         scatter_on_surface(p, k, tri, x);
     }
     stats_.density_lookups += lookups;
-    size_t queued = 0;
-    for (size_t k = 0; k < hits.count; ++k) queued += shadow_.rays[k].live;
-    return queued;
+    return shadow_.live();
 }
 
 void PathTracer::queue_shadow(CameraPath &p, size_t slot, const LightSample &ls, const RGB &f,
                               double pdf_dir, const Vec3 &origin, int medium) {
     if (!ls.valid || is_black(f)) return;
     double w = ls.delta ? 1.0 : power_heuristic(ls.pdf, pdf_dir);
-    ShadowRay &r = shadow_.rays[slot];
+    ShadowRay &r = shadow_[slot];
     r.dir = ls.wi;
     r.to_infinity = !std::isfinite(ls.dist);
     r.target = r.to_infinity ? Vec3() : ls.point;
@@ -189,7 +186,8 @@ size_t PathTracer::next_rays(const RayBuffers &out) {
     for (int32_t i : active_)
         if (paths_[i].alive) active_[n++] = i;
     active_.resize(n);
-    for (size_t k = 0; k < n; ++k) {
+#pragma omp parallel for schedule(static) num_threads(threads_)
+    for (int64_t k = 0; k < int64_t(n); ++k) {
         const CameraPath &p = paths_[active_[k]];
         out.put(k, p.pos, p.dir, kInf);
     }

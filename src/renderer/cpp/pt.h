@@ -45,7 +45,7 @@ public:
     // queue a shadow ray. Returns the number of queued shadow rays.
     size_t shade(const Hits &hits);
     // Pass 3 (repeated): write pending shadow segments; returns their count.
-    size_t shadow_rays(const RayBuffers &out) { return shadow_.compact_and_write(out); }
+    size_t shadow_rays(const RayBuffers &out) { return shadow_.compact_and_write(out, threads_); }
     void resolve_shadows(const Hits &hits);
     // Pass 4: extension rays of the paths still alive.
     size_t next_rays(const RayBuffers &out);

@@ -57,16 +57,28 @@ struct ShadowRay {
 
 class ShadowQueue {
 public:
-    std::vector<ShadowRay> rays;
+    std::vector<ShadowRay> rays;  // one slot per work item; finished rays are dropped by compaction
 
     void clear() { rays.clear(); }
+    // Makes n empty slots; a kernel fills slot k for work item k (or leaves it dead).
+    void reset(size_t n) { rays.resize(n); }
+    ShadowRay &operator[](size_t k) { return rays[k]; }
+    size_t live() const {
+        size_t n = 0;
+        for (const ShadowRay &r : rays) n += r.live;
+        return n;
+    }
     // Drops finished rays (keeping order) and writes the rest to the buffers.
-    size_t compact_and_write(const RayBuffers &buf) {
+    size_t compact_and_write(const RayBuffers &buf, int threads = 1) {
         size_t n = 0;
         for (size_t i = 0; i < rays.size(); ++i)
-            if (rays[i].live) rays[n++] = rays[i];
+            if (rays[i].live) {
+                if (n != i) rays[n] = rays[i];
+                ++n;
+            }
         rays.resize(n);
-        for (size_t k = 0; k < n; ++k) {
+#pragma omp parallel for schedule(static) num_threads(threads)
+        for (int64_t k = 0; k < int64_t(n); ++k) {
             const ShadowRay &r = rays[k];
             buf.put(k, r.origin, r.dir, r.remaining() - r.target_eps);
         }

@@ -1,0 +1,115 @@
+"""pt against raw Embree throughput and against Mitsuba volpath at equal time.
+
+    python bench/bench_pt.py [--scenes cbox cbox-fog cbox-grid] [--seconds 10] [--size 128]
+
+(a) Ray throughput: pt's rays per second of render time, against raw embreex on the very
+    rays pt traced (one wave's extension and shadow batches, re-traced by the same tracer
+    with the same thread count).
+(b) Equal time: relMSE of pt and of Mitsuba volpath (fastest variant here) after the same
+    render time, against a high-spp Mitsuba reference cached under bench/.cache/.
+Numbers are printed, never asserted: timings on a shared machine are noisy.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+
+from compare.metrics import compare_images
+from renderer.imageio import read_exr, write_exr
+from renderer.methods import get_method
+from renderer.methods.pt import PathTracing
+from renderer.reference import render_reference
+from renderer.scene import load_scene
+
+CACHE = Path(__file__).resolve().parent / ".cache"
+
+
+def raw_embree_rate(scene, threads: int, repeats: int = 3) -> tuple[float, float]:
+    """(pt rays/s, raw embreex rays/s) on the rays of one pt wave."""
+    method = PathTracing(scene, seed=11, threads=threads, params={})
+    batches = []
+    original = method.tracer.intersect
+
+    def recording(batch, n):
+        batches.append((batch.origins[:n].copy(), batch.directions[:n].copy(), batch.tmax[:n].copy()))
+        return original(batch, n)
+
+    method.tracer.intersect = recording
+    start = time.perf_counter()
+    method.run_iteration(0)
+    pt_seconds = time.perf_counter() - start
+    rays = sum(len(b[0]) for b in batches)
+    method.tracer.intersect = original
+
+    from renderer.tracer import RayBatch
+
+    replay = []
+    for o, d, t in batches:
+        b = RayBatch(len(o))
+        b.origins[:], b.directions[:] = o, d
+        replay.append((b, t))
+    best = np.inf
+    for _ in range(repeats):
+        start = time.perf_counter()
+        for b, t in replay:
+            b.tmax[:] = t
+            method.tracer.intersect(b, len(t))
+        best = min(best, time.perf_counter() - start)
+    return rays / pt_seconds, rays / best
+
+
+def timed(method_id: str, scene, seconds: float, threads: int, seed: int) -> tuple[np.ndarray, dict]:
+    method = get_method(method_id)(scene, seed=seed, threads=threads, params={})
+    elapsed, i = 0.0, 0
+    while elapsed < seconds:
+        start = time.perf_counter()
+        method.run_iteration(i)
+        elapsed += time.perf_counter() - start
+        i += 1
+    return method.image(), dict(method.stats(), seconds=elapsed)
+
+
+def reference(scene, name: str, size: int, spp: int) -> np.ndarray:
+    path = CACHE / f"{name}-{size}-{spp}.exr"
+    if not path.exists():
+        print(f"  rendering the reference of {name} ({spp} spp at {size}x{size}) ...", flush=True)
+        image, _ = render_reference(scene, spp, seed=12345)
+        write_exr(path, image)
+    return read_exr(path).astype(np.float64)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenes", nargs="+", default=["cbox", "cbox-fog", "cbox-grid"])
+    parser.add_argument("--seconds", type=float, default=10.0, help="equal-time budget")
+    parser.add_argument("--size", type=int, default=128, help="film width and height")
+    parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--reference-spp", type=int, default=8192)
+    args = parser.parse_args()
+
+    rows = []
+    for name in args.scenes:
+        scene = load_scene(name, [f"film.width={args.size}", f"film.height={args.size}"])
+        pt_rate, raw_rate = raw_embree_rate(scene, args.threads)
+        ref = reference(scene, name, args.size, args.reference_spp)
+        errors = {}
+        for method_id in ("pt", "mitsuba"):
+            image, stats = timed(method_id, scene, args.seconds, args.threads, seed=1)
+            errors[method_id] = (compare_images(image, ref)["relmse"], stats)
+        rows.append((name, pt_rate, raw_rate, errors))
+        print(
+            f"{name:<10} pt {pt_rate / 1e6:5.2f} Mrays/s  raw embreex {raw_rate / 1e6:5.2f} Mrays/s"
+            f"  ({pt_rate / raw_rate:4.0%})  |  relMSE at {args.seconds:g} s: "
+            f"pt {errors['pt'][0]:.3e} ({errors['pt'][1]['spp']} spp), "
+            f"mitsuba {errors['mitsuba'][0]:.3e} ({errors['mitsuba'][1]['spp']} spp), "
+            f"mitsuba/pt {errors['mitsuba'][0] / errors['pt'][0]:.2f}x",
+            flush=True,
+        )
+
+
+if __name__ == "__main__":
+    main()
