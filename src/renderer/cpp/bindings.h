@@ -75,5 +75,6 @@ void bind_pt(nb::module_ &m);
 void bind_lt(nb::module_ &m);
 void bind_pm(nb::module_ &m);
 void bind_media(nb::module_ &m);
+void bind_ppb(nb::module_ &m);
 
 }  // namespace pgi::bind

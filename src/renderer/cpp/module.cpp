@@ -239,4 +239,5 @@ NB_MODULE(_core, m) {
     bind_lt(m);
     bind_pm(m);
     bind_media(m);
+    bind_ppb(m);
 }

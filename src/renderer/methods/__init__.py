@@ -34,6 +34,7 @@ _METHODS: dict[str, tuple[str, str, str]] = {
     "lt": ("lt", "LightTracing", "light tracing: light paths connected to the camera"),
     "pm": ("pm", "PhotonMapping", "photon mapping, volume photons, beam radiance estimate"),
     "sppm": ("sppm", "StochasticProgressivePhotonMapping", "progressive photon mapping + media"),
+    "ppb": ("ppb", "ProgressivePhotonBeams", "progressive photon beams (BB1D) in media"),
     "mitsuba": ("mitsuba", "MitsubaVolpath", "Mitsuba 3 volpath at the same budget"),
 }
 

@@ -1,0 +1,108 @@
+// ppb: progressive photon beams.
+//   Jarosz, Nowrouzezahrai, Thomas, Sloan & Zwicker 2011, "Progressive photon
+//   beams", ACM TOG 30(6) (SIGGRAPH Asia);
+//   Jarosz, Nowrouzezahrai, Sadeghi & Jensen 2011, "A comprehensive theory of
+//   volumetric radiance estimation using photon points and beams", ACM TOG 30(1)
+//   (the beam x beam 1D estimator, "BB1D");
+//   Knaus & Zwicker 2011, "Progressive photon mapping: a probabilistic approach"
+//   (the radius schedule, with a 1D kernel: d = 1).
+//
+// One iteration: light paths from the shared tracer (lightpath.h) leave their
+// medium segments as *short* photon beams (each ends at the collision the
+// tracer sampled, or at the surface when none was); camera paths then walk
+// from the camera through media without scattering there, and every medium
+// segment they cross gathers the beams of the same medium with
+//   L += T_cam(t) sigma_s(x) phase(theta) * power * T_beam(s) / P_beam(s)
+//        * 1/(2r) / sin(theta) / N_light_paths                      (BB1D)
+// where x is the closest point on the camera segment, s the distance along the
+// beam, T/P the short-beam weight (lightpath.h), r this iteration's radius.
+// Camera transmittance: closed form in homogeneous media; in density grids a
+// distance is sampled by delta tracking and only beams before it are gathered
+// (the camera ray is a short query ray; weight 1 for gray extinction).
+//
+// Surfaces are handled as a path tracer does (pt.h): emission with MIS,
+// next-event estimation and BSDF sampling at diffuse surfaces, specular and
+// null surfaces followed. So the path space splits by the camera path's first
+// medium vertex: paths with one are estimated by beams (every light-side
+// prefix, any depth), paths without one by the surface path tracer; nothing is
+// counted twice. Depth (Mitsuba's max_depth): a beam gathered after s surface
+// events on the camera side makes a path of beam.depth + 1 + s events.
+#pragma once
+
+#include <memory>
+
+#include "beams.h"
+#include "lightpath.h"
+#include "radius_schedule.h"
+#include "wavefront.h"
+
+namespace pgi {
+
+struct BeamGatherPath {
+    Vec3 pos, dir;
+    RGB throughput{1.0};
+    RGB radiance{0.0};
+    Vec3 prev_pos;        // last diffuse vertex (for the light pdf in MIS)
+    double prev_pdf = 0;
+    double eta2 = 1;
+    int64_t pixel = 0;
+    int depth = 0;        // real surface scattering events so far
+    int medium = -1;
+    int null_crossings = 0;
+    bool prev_delta = true;
+    bool alive = false;
+    Sampler rng;
+};
+
+// Counts of one run (all iterations).
+struct BeamStats {
+    uint64_t beams = 0;           // stored
+    uint64_t beam_pairs = 0;      // camera-segment x beam pairs gathered
+    uint64_t density_lookups = 0;
+};
+
+class PhotonBeams {
+public:
+    // radius: r_1 of the schedule r_i = r_1 i^(alpha - 1) (Knaus & Zwicker 2011, d = 1).
+    PhotonBeams(std::shared_ptr<const Scene> scene, int max_depth, int rr_depth, uint64_t seed,
+                int spp_per_iteration, int threads, size_t max_beams, double radius, double alpha);
+
+    size_t capacity() const { return paths_.size(); }
+    // Pass 1: the beams of this iteration's light paths, with the iteration's radius.
+    void build_beams(const LightPathTracer &light, int64_t iteration, double max_piece_length);
+    double radius(int64_t iteration) const { return schedule_.radius(iteration); }
+    // Pass 2: camera rays; returns the count.
+    size_t begin_wave(int64_t iteration, const RayBuffers &out);
+    // Pass 3: gather beams along each traced segment, then the surface (emission,
+    // NEE, BSDF sampling). Returns the number of queued shadow rays.
+    size_t shade(const Hits &hits);
+    size_t shadow_rays(const RayBuffers &out) { return shadow_.compact_and_write(out); }
+    void resolve_shadows(const Hits &hits);
+    size_t next_rays(const RayBuffers &out);
+    void end_wave();
+
+    const Film &film() const { return film_; }
+    const BeamBvh &bvh() const { return bvh_; }
+    const BeamStats &stats() const { return stats_; }
+
+private:
+    RGB gather(BeamGatherPath &p, double t_end, MediumStats &local, uint64_t &pairs) const;
+    void scatter_on_surface(BeamGatherPath &p, size_t slot, int tri, const Vec3 &x);
+    bool russian_roulette(BeamGatherPath &p);
+
+    std::shared_ptr<const Scene> scene_;
+    int max_depth_, rr_depth_;
+    uint64_t seed_;
+    int spp_per_iteration_, threads_;
+    std::vector<BeamGatherPath> paths_;
+    std::vector<int32_t> active_;
+    ShadowQueue shadow_;
+    Film film_;
+    BeamBvh bvh_;
+    RadiusSchedule schedule_;
+    double beam_scale_ = 0;  // 1 / (2 r N_light_paths)
+    BeamStats stats_;
+    MediumStats medium_stats_;
+};
+
+}  // namespace pgi
