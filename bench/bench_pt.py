@@ -35,7 +35,9 @@ def raw_embree_rate(scene, threads: int, repeats: int = 3) -> tuple[float, float
     original = method.tracer.intersect
 
     def recording(batch, n):
-        batches.append((batch.origins[:n].copy(), batch.directions[:n].copy(), batch.tmax[:n].copy()))
+        batches.append(
+            (batch.origins[:n].copy(), batch.directions[:n].copy(), batch.tmax[:n].copy())
+        )
         return original(batch, n)
 
     method.tracer.intersect = recording
@@ -62,7 +64,9 @@ def raw_embree_rate(scene, threads: int, repeats: int = 3) -> tuple[float, float
     return rays / pt_seconds, rays / best
 
 
-def timed(method_id: str, scene, seconds: float, threads: int, seed: int) -> tuple[np.ndarray, dict]:
+def timed(
+    method_id: str, scene, seconds: float, threads: int, seed: int
+) -> tuple[np.ndarray, dict]:
     method = get_method(method_id)(scene, seed=seed, threads=threads, params={})
     elapsed, i = 0.0, 0
     while elapsed < seconds:

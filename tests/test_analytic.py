@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from parity import mitsuba, ours
 
+from parity import mitsuba, ours
 from renderer.methods.pt import PathTracing
 from renderer.scene import load_scene
 

@@ -8,9 +8,9 @@ probability about alpha = 1e-3 per check when both renderers are right.
 from __future__ import annotations
 
 import pytest
+
 from conftest import load_small
 from parity import agreement, mitsuba, ours
-
 from renderer.methods.pt import PathTracing
 
 ALPHA = 1e-3

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import load_small
 
+from conftest import load_small
 from renderer.methods.pt import PathTracing
 
 

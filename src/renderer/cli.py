@@ -15,7 +15,9 @@ def _floats(text: str) -> list[float]:
     try:
         values = [float(x) for x in text.split(",") if x.strip()]
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated seconds, got {text!r}") from None
+        raise argparse.ArgumentTypeError(
+            f"expected comma-separated seconds, got {text!r}"
+        ) from None
     if not values or any(v <= 0 for v in values):
         raise argparse.ArgumentTypeError(f"expected positive seconds, got {text!r}")
     return values
@@ -76,7 +78,8 @@ def cmd_render(args: argparse.Namespace) -> int:
     info = render(scene, settings, out, progress=not args.quiet)
     print(
         f"{out}: {info['method']} {info['spp']} spp in {info['render_seconds']:.2f} s "
-        f"(load {info['load_seconds']:.2f} s), {info.get('nonfinite', 0)} non-finite samples dropped"
+        f"(load {info['load_seconds']:.2f} s), "
+        f"{info.get('nonfinite', 0)} non-finite samples dropped"
     )
     return 0
 

@@ -101,7 +101,13 @@ def render(
     method_cls = get_method(settings.method)
 
     t0 = time.perf_counter()
-    method = method_cls(scene, seed=settings.seed, threads=settings.threads, params=settings.params)
+    method = method_cls(
+        scene,
+        seed=settings.seed,
+        threads=settings.threads,
+        params=settings.params,
+        spp_budget=settings.spp,
+    )
     load_seconds = time.perf_counter() - t0
 
     base = {

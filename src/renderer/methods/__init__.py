@@ -49,8 +49,6 @@ def describe(method_id: str) -> str:
 
 def get_method(method_id: str) -> type[Method]:
     if method_id not in _METHODS:
-        raise PgiError(
-            f"unknown method {method_id!r}; expected one of: {', '.join(method_ids())}"
-        )
+        raise PgiError(f"unknown method {method_id!r}; expected one of: {', '.join(method_ids())}")
     module, cls, _ = _METHODS[method_id]
     return getattr(import_module(f"{__name__}.{module}"), cls)

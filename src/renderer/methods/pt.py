@@ -41,7 +41,9 @@ class PathTracing:
     ) -> None:
         unknown = set(params) - {"spp_per_wave"}
         if unknown:
-            raise PgiError(f"method pt: unknown parameter(s) {sorted(unknown)}; known: spp_per_wave")
+            raise PgiError(
+                f"method pt: unknown parameter(s) {sorted(unknown)}; known: spp_per_wave"
+            )
         pixels = scene.film.width * scene.film.height
         spp_per_wave = int(params.get("spp_per_wave", wave_spp(pixels, spp_budget)))
         self.native = build_native_scene(scene)

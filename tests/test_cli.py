@@ -1,0 +1,178 @@
+"""The pgi command as a user meets it: outputs, sidecars, and clear errors on bad input."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import SCENES
+
+PGI = [sys.executable, "-m", "renderer.cli"]
+
+
+def pgi(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run([*PGI, *args], capture_output=True, text=True, cwd=cwd, timeout=300)
+
+
+def small(*extra: str) -> list[str]:
+    return ["--set", "film.width=16", "--set", "film.height=16", *extra]
+
+
+def test_render_writes_image_sidecar_and_snapshots(tmp_path):
+    out = tmp_path / "fog.exr"
+    r = pgi(
+        "render",
+        "cbox-fog",
+        "--method",
+        "pt",
+        "--snapshots",
+        "0.2,0.4",
+        "--threads",
+        "1",
+        "--seed",
+        "5",
+        "-q",
+        *small(),
+        "-o",
+        str(out),
+    )
+    assert r.returncode == 0, r.stderr
+    for path in (out, tmp_path / "fog.t0.2.exr", tmp_path / "fog.t0.4.exr"):
+        assert path.exists() and path.with_suffix(".json").exists()
+    info = json.loads(out.with_suffix(".json").read_text())
+    for key in (
+        "method",
+        "params",
+        "iterations",
+        "spp",
+        "render_seconds",
+        "load_seconds",
+        "rays",
+        "nonfinite",
+        "seed",
+        "threads",
+        "version",
+        "scene",
+    ):
+        assert key in info
+    assert info["method"] == "pt" and info["seed"] == 5 and info["render_seconds"] >= 0.4
+    assert info["nonfinite"] == 0 and info["rays"] > 0
+    snap = json.loads((tmp_path / "fog.t0.2.json").read_text())
+    assert snap["snapshot_budget"] == 0.2 and snap["render_seconds"] <= info["render_seconds"]
+
+
+def test_render_spp_budget_and_image_content(tmp_path):
+    from renderer.imageio import read_exr
+
+    out = tmp_path / "box.exr"
+    r = pgi(
+        "render",
+        str(SCENES / "cbox" / "scene.yaml"),
+        "--method",
+        "pt",
+        "--spp",
+        "4",
+        "-q",
+        *small(),
+        "-o",
+        str(out),
+    )
+    assert r.returncode == 0, r.stderr
+    image = read_exr(out)
+    assert image.shape == (16, 16, 3) and np.all(np.isfinite(image)) and image.mean() > 0
+    assert json.loads(out.with_suffix(".json").read_text())["spp"] == 4
+
+
+def test_methods_lists_pt_and_mitsuba():
+    r = pgi("methods")
+    assert r.returncode == 0
+    ids = [line.split()[0] for line in r.stdout.splitlines()]
+    assert "pt" in ids and "mitsuba" in ids
+
+
+BAD_SCENES = {
+    "broken-yaml": ("camera: [unclosed\n", "scene.yaml"),
+    "unknown-key": (None, "colour"),
+    "missing-mesh": (None, "missing.ply"),
+    "negative-density": (None, "sigma_t"),
+}
+
+
+def _write_bad_scene(tmp_path: Path, kind: str) -> Path:
+    base = (SCENES / "cbox-fog" / "scene.yaml").read_text()
+    folder = tmp_path / kind
+    folder.mkdir()
+    (folder / "box.yaml").write_text((SCENES / "cbox" / "box.yaml").read_text())
+    base = base.replace("../cbox/box.yaml", "box.yaml")
+    if kind == "broken-yaml":
+        text = BAD_SCENES[kind][0]
+    elif kind == "unknown-key":
+        text = base + "colour: blue\n"
+    elif kind == "missing-mesh":
+        text = base.replace(
+            "shapes:\n",
+            "shapes:\n  - {name: bunny, type: mesh, file: missing.ply, material: white}\n",
+            1,
+        )
+    else:
+        text = base.replace("sigma_t: 1.0", "sigma_t: -1.0")
+    (folder / "scene.yaml").write_text(text)
+    return folder / "scene.yaml"
+
+
+@pytest.mark.parametrize("kind", sorted(BAD_SCENES))
+def test_bad_scene_gives_one_line_error_and_no_output(tmp_path, kind):
+    scene = _write_bad_scene(tmp_path, kind)
+    out = tmp_path / "out.exr"
+    r = pgi("render", str(scene), "--method", "pt", "--spp", "1", "-o", str(out))
+    assert r.returncode != 0
+    assert "Traceback" not in r.stderr
+    message = r.stderr.strip()
+    assert message.startswith("pgi: error:") and len(message.splitlines()) == 1, message
+    assert "scene.yaml" in message and BAD_SCENES[kind][1] in message
+    assert not any(tmp_path.glob("out*")), "nothing may be written on error"
+    v = pgi("validate", str(scene))
+    assert v.returncode != 0 and "Traceback" not in v.stderr
+
+
+@pytest.mark.parametrize(
+    "args, expected",
+    [
+        (["render", "cbox", "--method", "nope", "--spp", "1", "-o", "x.exr"], "unknown method"),
+        (["render", "cbox", "--method", "pt", "-o", "x.exr"], "--time, --spp or --snapshots"),
+        (["render", "cbox", "--method", "pt", "--spp", "1", "-o", "x.png"], ".exr"),
+        (
+            ["render", "no-such-scene", "--method", "pt", "--spp", "1", "-o", "x.exr"],
+            "no-such-scene",
+        ),
+        (
+            ["render", "cbox", "--method", "pt", "--spp", "1", "--threads", "999", "-o", "x.exr"],
+            "core",
+        ),
+        (["compare", "missing-a.exr", "missing-b.exr"], "missing-a.exr"),
+    ],
+)
+def test_user_mistakes_are_one_line_errors(tmp_path, args, expected):
+    r = pgi(*args, cwd=tmp_path)
+    assert r.returncode != 0
+    assert "Traceback" not in r.stderr and expected in r.stderr, r.stderr
+    assert not list(tmp_path.iterdir())
+
+
+def test_compare_reports_metrics_as_json(tmp_path):
+    from renderer.imageio import write_exr
+
+    rng = np.random.default_rng(0)
+    ref = rng.uniform(0.1, 1.0, (8, 8, 3)).astype(np.float32)
+    write_exr(tmp_path / "ref.exr", ref)
+    write_exr(tmp_path / "test.exr", ref * 1.1)
+    r = pgi("compare", str(tmp_path / "test.exr"), str(tmp_path / "ref.exr"), "--json")
+    assert r.returncode == 0, r.stderr
+    metrics = json.loads(r.stdout)
+    assert metrics["mse"] == pytest.approx(np.mean((0.1 * ref.astype(np.float64)) ** 2), rel=1e-5)
+    assert {"rmse", "relmse", "relmse_trimmed", "mape", "smape"} <= set(metrics)
