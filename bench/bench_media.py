@@ -1,0 +1,198 @@
+"""Benchmark of the transmittance estimators and of pt against Mitsuba's volpath on media.
+
+Three tables (numbers are reported, never asserted; timings are noisy on a shared machine):
+
+1. Shadow-ray transmittance on ``smoke`` and ``cbox-grid``: rays from points in the medium
+   (drawn in proportion to density) to a light; per estimator the mean density lookups per ray,
+   the mean per-ray variance, and the efficiency 1 / (variance x lookups) relative to delta
+   tracking. Ray marching (step: half a voxel) is biased: its mean relative bias against
+   residual ratio tracking with many samples is reported instead of a variance.
+2. Equal-time renders with pt per estimator: relMSE against a long reference (pt, residual
+   ratio tracking, another seed; its own error is estimated from two halves), lookups per path.
+3. Equal time on ``smoke``: pt with the best estimator against Mitsuba volpath (global
+   majorant), relMSE against the same reference.
+
+Run: python bench/bench_media.py [--time 5] [--res 64] [--threads 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from renderer import _core
+from renderer.engine import build_native_scene
+from renderer.methods.mitsuba import MitsubaVolpath
+from renderer.methods.pt import PathTracing
+from renderer.scene import load_scene
+from renderer.scene.model import PointLight
+
+ESTIMATORS = {"delta": 0, "ratio": 1, "residual": 2, "raymarch": 3}
+
+
+def rel_mse(x: np.ndarray, ref: np.ndarray) -> float:
+    return float(np.mean((x - ref) ** 2 / (ref**2 + 0.01)))
+
+
+# --------------------------------------------------------------------------- 1. shadow rays
+
+
+def shadow_rays(scene, n_rays: int, seed: int) -> list[tuple[np.ndarray, np.ndarray, float]]:
+    """(origin, direction, distance) of rays from dense points to the scene's first light (a
+    point light, or the area light's centre)."""
+    rng = np.random.default_rng(seed)
+    m = next(m for m in scene.media.values() if m.type == "grid")
+    d = m.density.ravel().astype(np.float64)
+    idx = rng.choice(len(d), n_rays, p=d / d.sum())
+    ijk = np.stack(np.unravel_index(idx, m.density.shape), axis=1)
+    local = (ijk + rng.random((n_rays, 3))) / np.array(m.density.shape)
+    points = local @ m.to_world[:3, :3].T + m.to_world[:3, 3]
+    light = next((li for li in scene.lights if isinstance(li, PointLight)), None)
+    if light is not None:
+        target = np.asarray(light.position, float)
+    else:
+        emitter = next(s for s in scene.shapes if s.emission is not None)
+        target = emitter.vertices.mean(axis=0) - [0, 0.01, 0]
+    rays = []
+    for p in points:
+        v = target - p
+        dist = float(np.linalg.norm(v))
+        rays.append((p, v / dist, dist))
+    return rays
+
+
+def shadow_table(name: str, n_rays: int = 200, samples: int = 256) -> list[dict]:
+    scene = load_scene(name, ["film.width=8", "film.height=8"])
+    native = build_native_scene(scene)
+    core, medium = native.core, 0
+    rays = shadow_rays(scene, n_rays, seed=1)
+    step = 0.5 * float(
+        (np.linalg.norm(scene.media[next(iter(scene.media))].to_world[:3, :3], axis=0)
+         / np.array(scene.media[next(iter(scene.media))].density.shape)).min()
+    )  # fmt: skip
+    truth = []
+    _core.configure_medium(core, medium, ESTIMATORS["residual"], 0.0)
+    for i, (o, d, dist) in enumerate(rays):
+        t, _ = _core.transmittance_samples(core, medium, tuple(o), tuple(d), dist, 10_000 + i, 4096)
+        truth.append(t.mean())
+    truth = np.array(truth)
+    rows = []
+    for est, code in ESTIMATORS.items():
+        _core.configure_medium(core, medium, code, step)
+        variances, lookups, means = [], 0, []
+        t0 = time.perf_counter()
+        for i, (o, d, dist) in enumerate(rays):
+            t, k = _core.transmittance_samples(core, medium, tuple(o), tuple(d), dist, i, samples)
+            variances.append(t.var(ddof=1))
+            means.append(t.mean())
+            lookups += k
+        seconds = time.perf_counter() - t0
+        var = float(np.mean(variances))
+        per_ray = lookups / (n_rays * samples)
+        bias = float(np.mean(np.abs(np.array(means) - truth)) / max(truth.mean(), 1e-12))
+        rows.append({"scene": name, "estimator": est, "lookups_per_ray": per_ray,
+                     "variance": var, "us_per_ray": 1e6 * seconds / (n_rays * samples),
+                     "efficiency": 1 / (var * per_ray) if var > 0 and per_ray > 0 else np.inf,
+                     "rel_bias": bias})  # fmt: skip
+    base = next(r["efficiency"] for r in rows if r["estimator"] == "delta")
+    for r in rows:
+        r["efficiency_vs_delta"] = r["efficiency"] / base
+    return rows
+
+
+# --------------------------------------------------------------------------- 2, 3. renders
+
+
+def timed(method, seconds: float) -> tuple[np.ndarray, dict, float]:
+    """Iterations until ``seconds`` of render time have passed (loading excluded)."""
+    start = time.perf_counter()
+    i = 0
+    while time.perf_counter() - start < seconds:
+        method.run_iteration(i)
+        i += 1
+    return method.image(), method.stats(), time.perf_counter() - start
+
+
+def reference(scene, seconds: float, threads: int) -> tuple[np.ndarray, float]:
+    """A long pt render (residual estimator) and the relMSE of one half against the other,
+    an estimate of the reference's own error (x 1/2 for the average of both halves)."""
+    halves = []
+    for seed in (101, 102):
+        m = PathTracing(scene, seed=seed, threads=threads, params={"spp_per_wave": 8})
+        image, _, _ = timed(m, seconds / 2)
+        halves.append(image)
+    ref = 0.5 * (halves[0] + halves[1])
+    return ref, rel_mse(halves[0], halves[1]) / 4
+
+
+def render_table(name: str, res: int, seconds: float, ref_seconds: float, threads: int):
+    base = [f"film.width={res}", f"film.height={res}"]
+    ref_scene = load_scene(name, [*base, "integrator.estimator=residual"])
+    ref, ref_err = reference(ref_scene, ref_seconds, threads)
+    rows = []
+    for est in ESTIMATORS:
+        scene = load_scene(name, [*base, f"integrator.estimator={est}"])
+        m = PathTracing(scene, seed=1, threads=threads, params={"spp_per_wave": 2})
+        image, st, used = timed(m, seconds)
+        paths = st["spp"] * res * res
+        rows.append({"scene": name, "method": f"pt/{est}", "seconds": used, "spp": st["spp"],
+                     "lookups_per_path": st["density_lookups"] / max(paths, 1),
+                     "relMSE": rel_mse(image, ref), "ref_relMSE": ref_err})  # fmt: skip
+    return rows, ref, ref_err
+
+
+def mitsuba_row(name: str, res: int, seconds: float, threads: int, ref, ref_err) -> dict:
+    scene = load_scene(name, [f"film.width={res}", f"film.height={res}"])
+    m = MitsubaVolpath(scene, seed=1, threads=threads, params={"spp_per_iteration": 2})
+    image, st, used = timed(m, seconds)
+    return {"scene": name, "method": "mitsuba volpath", "seconds": used, "spp": st["spp"],
+            "lookups_per_path": float("nan"), "relMSE": rel_mse(image, ref),
+            "ref_relMSE": ref_err}  # fmt: skip
+
+
+def print_table(rows: list[dict], columns: list[str]) -> None:
+    print(" | ".join(f"{c:>18}" for c in columns))
+    for r in rows:
+        cells = []
+        for c in columns:
+            v = r[c]
+            cells.append(f"{v:>18.4g}" if isinstance(v, float) else f"{v!s:>18}")
+        print(" | ".join(cells))
+    print()
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--time", type=float, default=5.0, help="seconds per timed render")
+    ap.add_argument("--ref-time", type=float, default=40.0, help="seconds for each reference")
+    ap.add_argument("--res", type=int, default=64)
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--scenes", nargs="+", default=["smoke", "cbox-grid"])
+    args = ap.parse_args()
+
+    print("1. Shadow-ray transmittance (200 rays from density-weighted points to the light)\n")
+    rows = [r for s in args.scenes for r in shadow_table(s)]
+    print_table(rows, ["scene", "estimator", "lookups_per_ray", "variance", "us_per_ray",
+                       "efficiency_vs_delta", "rel_bias"])  # fmt: skip
+
+    print(f"2./3. Equal-time renders, {args.res}x{args.res}, {args.time:g} s each\n")
+    all_rows = []
+    for s in args.scenes:
+        rows, ref, ref_err = render_table(s, args.res, args.time, args.ref_time, args.threads)
+        if s == "smoke":
+            rows.append(mitsuba_row(s, args.res, args.time, args.threads, ref, ref_err))
+            unbiased = [r for r in rows if r["method"] not in ("pt/raymarch", "mitsuba volpath")]
+            best = min(unbiased, key=lambda r: r["relMSE"])
+            ratio = rows[-1]["relMSE"] / best["relMSE"]
+            rows.append({"scene": s, "method": f"mitsuba/{best['method']}", "seconds": float("nan"),
+                         "spp": "", "lookups_per_path": float("nan"), "relMSE": ratio,
+                         "ref_relMSE": ref_err})  # fmt: skip
+        all_rows += rows
+    print_table(all_rows, ["scene", "method", "seconds", "spp", "lookups_per_path", "relMSE",
+                           "ref_relMSE"])  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
