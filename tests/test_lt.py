@@ -229,3 +229,21 @@ def test_vertex_order_is_deterministic_across_threads():
     va, vb = a.kernel.vertices(), b.kernel.vertices()
     for key in va:
         assert np.array_equal(va[key], vb[key]), key
+
+
+@pytest.mark.parametrize(
+    "name, expected", [("cbox-fog", "fog"), ("cbox", None), ("volcaustic", "fog")]
+)
+def test_lights_emit_into_their_medium(name, expected):
+    """cbox-fog: inside a fog box (found by probes); volcaustic: in the camera's unbounded fog."""
+    from renderer.engine import build_native_scene
+    from renderer.methods.lightpath import emission_media
+    from renderer.tracer import EmbreeTracer
+
+    scene = load_small(name, 8, 8)
+    native = build_native_scene(scene)
+    per_triangle, _ = emission_media(native, EmbreeTracer(native.triangles, 1), scene)
+    light = next(i for i, s in enumerate(scene.shapes) if s.emission is not None)
+    first = sum(len(s.faces) for s in scene.shapes[:light])
+    want = -1 if expected is None else list(scene.media).index(expected)
+    assert np.all(per_triangle[first : first + len(scene.shapes[light].faces)] == want)

@@ -106,7 +106,9 @@ def emission_media(native: NativeScene, tracer: EmbreeTracer, scene: Scene, seed
     Area lights come first in the core (one per emitting shape, in shape order), then
     point, spot and directional lights in the scene's order. Emitting triangles are
     probed from their centroid on the front side; point and spot lights from their
-    position; directional lights start outside the scene (vacuum).
+    position; directional lights start outside the scene (vacuum). When the camera sits in
+    a medium, lights it reaches without crossing a shape that names a medium share it
+    (a fog-filled room has no shape naming its fog).
     """
     rng = np.random.default_rng(seed)
     tri = native.triangles
@@ -142,7 +144,52 @@ def emission_media(native: NativeScene, tracer: EmbreeTracer, scene: Scene, seed
         d = rng.normal(size=(_PROBE_DIRECTIONS, 3))
         found = locate_media(native, tracer, scene, np.repeat(pos[None], _PROBE_DIRECTIONS, 0), d)
         per_light[lights_area + i] = _majority(found[:, None])[0]
+    if scene.camera.medium is not None:
+        # A medium no shape names (a room filled with the camera's fog) is invisible to the
+        # probes. A light that the camera reaches without crossing a shape naming a medium is
+        # in the camera's medium, by the same transition rule.
+        camera_medium = _medium_names(scene)[scene.camera.medium]
+        if len(emitting):
+            same = _reaches_camera_freely(native, tracer, scene, start)
+            per_triangle[emitting[same]] = camera_medium
+        for i, pos in enumerate(point_positions):
+            if pos is not None and _reaches_camera_freely(native, tracer, scene, pos[None])[0]:
+                per_light[lights_area + i] = camera_medium
     return per_triangle, per_light
+
+
+def _reaches_camera_freely(
+    native: NativeScene, tracer: EmbreeTracer, scene: Scene, points: np.ndarray
+) -> np.ndarray:
+    """True where the segment from a point to the camera crosses no shape naming a medium."""
+    n = len(points)
+    free = np.ones(n, bool)
+    if n == 0:
+        return free
+    _, _, named = _triangle_media(scene, _medium_names(scene))
+    eps = 1e-5 * float(np.ptp(native.triangles.reshape(-1, 3), axis=0).max())
+    camera = np.asarray(scene.camera.origin, np.float64)
+    origin = points.astype(np.float64).copy()
+    batch = RayBatch(n)
+    pending = np.arange(n)
+    for _ in range(_MAX_PROBE_HITS):
+        if len(pending) == 0:
+            break
+        to = camera - origin[pending]
+        dist = np.linalg.norm(to, axis=1)
+        d = to / np.maximum(dist, 1e-300)[:, None]
+        m = len(pending)
+        batch.origins[:m], batch.directions[:m], batch.tmax[:m] = origin[pending], d, dist
+        tfar, prim, _, _ = tracer.intersect(batch, m)
+        prim = prim[:m].astype(np.int64)
+        hit = prim >= 0
+        crossed = np.zeros(m, bool)
+        crossed[hit] = named[prim[hit]]
+        free[pending[crossed]] = False
+        onward = hit & ~crossed
+        origin[pending[onward]] += d[onward] * (tfar[:m][onward, None] + eps)
+        pending = pending[onward]
+    return free
 
 
 def _majority(votes: np.ndarray) -> np.ndarray:
