@@ -11,10 +11,13 @@ converges as its step shrinks; per-cell minorant <= density <= majorant everywhe
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
 import stats
+from conftest import SCENES
 from renderer import _core
 from renderer.scene import load_scene
 from renderer.volumes import (
@@ -217,3 +220,35 @@ def test_scene_estimator_setting_reaches_the_core():
     expected = 2000 * 2 * 0.2475 * 1.9
     assert abs(lookups["residual"] - expected) < 5 * np.sqrt(expected), lookups
     assert lookups["ratio"] > 1.5 * lookups["residual"]
+
+
+# --------------------------------------------------------------------------- scene keys
+
+
+@pytest.mark.parametrize(
+    "override,message",
+    [
+        ("integrator.estimator=woodcock", "integrator.estimator: expected one of: delta"),
+        ("integrator.march_step=-1", "integrator.march_step"),
+        ("media.fog.density={type: perlin}", "resolution: missing required key"),
+        ("media.fog.density={type: cloud, resolution: 4}", "density.type: expected one of"),
+        ("media.fog.density={type: step, resolution: 4, values: [1]}", "expected [below, above]"),
+        ("media.fog.density={type: vdb, file: nothing.vdb}", "density file not found"),
+        ("media.fog.phase={type: tabulated}", "give either values"),
+        ("media.fog.phase={type: tabulated, values: [0, 0]}", "positive sum"),
+        ("media.fog.phase={type: mie, effective_radius: 0}", "effective_radius"),
+    ],
+)
+def test_scene_errors_name_the_key(override, message):
+    from renderer.errors import PgiError
+
+    with pytest.raises(PgiError, match=re.escape(message)):
+        load_scene("fog-step", [override])
+
+
+def test_vdb_grid_name_is_checked(tmp_path):
+    from renderer.errors import PgiError
+
+    scene = SCENES / "smoke" / "scene.yaml"
+    with pytest.raises(PgiError, match="no grid named 'smoke'"):
+        load_scene(scene, ["media.smoke.density.grid=smoke"])
