@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 
 namespace pgi {
@@ -36,7 +37,7 @@ void BeamBvh::build(std::vector<Beam> beams, double radius, double max_piece_len
         n = std::min<int>(n, 1 << 16);
         for (int k = 0; k < n; ++k) {
             double t0 = b.length * k / n, t1 = k + 1 == n ? b.length : b.length * (k + 1) / n;
-            pieces_.push_back(Piece{int32_t(i), t0, t1});
+            pieces_.push_back(Piece{b.origin, b.dir, t0, t1, k + 1 == n, int32_t(i)});
         }
     }
 
@@ -75,8 +76,11 @@ void BeamBvh::build(std::vector<Beam> beams, double radius, double max_piece_len
                 clo[k] = std::min(clo[k], centre[p][k]);
                 chi[k] = std::max(chi[k], centre[p][k]);
             }
-        nodes_[t.node].lo = blo;
-        nodes_[t.node].hi = bhi;
+        for (int k = 0; k < 3; ++k) {
+            // float boxes halve the tree's memory traffic; rounding outwards keeps them conservative.
+            nodes_[t.node].lo[k] = std::nextafter(float(blo[k]), -std::numeric_limits<float>::infinity());
+            nodes_[t.node].hi[k] = std::nextafter(float(bhi[k]), std::numeric_limits<float>::infinity());
+        }
         int32_t count = t.end - t.begin;
         Vec3 extent = chi - clo;
         int axis = extent.x > extent.y ? (extent.x > extent.z ? 0 : 2) : (extent.y > extent.z ? 1 : 2);

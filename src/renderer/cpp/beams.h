@@ -19,7 +19,7 @@
 // t_beam, so no beam is counted twice. Memory is bounded: at most `max_beams`
 // beams (more are dropped, in order, and counted) and `kPiecesPerBeam` pieces
 // per stored beam on average (pieces grow longer to stay within it): about
-// 48 + 16 * 24 + 16 * 56 / 4 bytes per beam at most.
+// 80 + 16 * 72 + 16 * 32 / 2 bytes per beam at most.
 // Visits follow the tree order, so sums over a query are deterministic.
 #pragma once
 
@@ -73,11 +73,13 @@ public:
 
 private:
     struct Piece {
+        Vec3 origin, dir;  // the beam's, copied: leaf tests read pieces sequentially
+        double t0, t1;     // parameter range on the beam; the last piece's t1 is the length
+        bool last;         // t1 is the beam's end (closed range)
         int32_t beam;
-        double t0, t1;  // parameter range on the beam; the last piece's t1 is the length
     };
     struct Node {
-        Vec3 lo, hi;     // box of the pieces below, grown by the radius
+        float lo[3], hi[3];  // box of the pieces below, grown by the radius, rounded outwards
         int32_t first;   // leaf: first piece; inner: the left child (the right one is first + 1)
         int32_t count;   // leaf: number of pieces; inner: 0
     };
@@ -138,13 +140,11 @@ void BeamBvh::query(const Vec3 &o, const Vec3 &d, double tmax, Visit &&visit) co
         }
         for (int32_t i = n.first; i < n.first + n.count; ++i) {
             const Piece &p = pieces_[i];
-            const Beam &b = beams_[p.beam];
             BeamHit h;
-            if (!closest_approach(b.origin, b.dir, o, d, h)) continue;
+            if (!closest_approach(p.origin, p.dir, o, d, h)) continue;
             if (!(h.distance < radius_) || h.t_ray < 0 || h.t_ray > tmax) continue;
             // The pair belongs to the piece holding t_beam (the last piece is closed).
-            bool last = p.t1 >= b.length;
-            if (h.t_beam < p.t0 || h.t_beam > p.t1 || (h.t_beam == p.t1 && !last)) continue;
+            if (h.t_beam < p.t0 || h.t_beam > p.t1 || (h.t_beam == p.t1 && !p.last)) continue;
             visit(p.beam, h);
         }
     }

@@ -8,9 +8,11 @@ namespace pgi {
 constexpr int kMaxNullCrossingsPpb = 256;
 
 PhotonBeams::PhotonBeams(std::shared_ptr<const Scene> scene, int max_depth, int rr_depth, uint64_t seed,
-                         int spp_per_iteration, int threads, size_t max_beams, double radius, double alpha)
+                         int spp_per_iteration, int threads, size_t max_beams, double radius, double alpha,
+                         int gather_diffuse_bounces)
     : scene_(std::move(scene)), max_depth_(max_depth), rr_depth_(rr_depth), seed_(seed),
       spp_per_iteration_(std::max(1, spp_per_iteration)), threads_(std::max(1, threads)),
+      gather_diffuse_bounces_(gather_diffuse_bounces),
       film_(scene_->camera.width, scene_->camera.height), bvh_(max_beams), schedule_(radius, alpha, 1) {
     paths_.resize(size_t(film_.width) * film_.height * spp_per_iteration_);
 }
@@ -110,22 +112,31 @@ size_t PhotonBeams::shade(const Hits &hits) {
         int tri = hits.prim[k];
         double t_hit = tri >= 0 ? double(hits.tfar[k]) : kInf;
 
-        // Medium segment: gather beams, then carry the transmittance to the surface.
         if (p.medium >= 0) {
             MediumStats local;
             const Medium &m = scene.media[p.medium];
-            if (m.type == MediumType::Homogeneous) {
+            if (!p.gathering) {
+                // After a diffuse surface: path tracing, medium scattering included (as pt).
+                FreeFlight ff = sample_free_flight(m, p.pos, p.dir, t_hit, p.rng, local);
+                lookups += local.density_lookups;
+                p.throughput *= ff.weight;
+                if (ff.scattered) {
+                    scatter_in_medium(p, k, p.pos + p.dir * ff.t);
+                    continue;
+                }
+            } else if (m.type == MediumType::Homogeneous) {
+                // Gather beams along the whole segment, then carry the transmittance to the surface.
                 p.radiance += p.throughput * gather(p, t_hit, local, pairs);
                 p.throughput *= beer_lambert(m.sigma_t, t_hit);
             } else {
                 // Short query ray: a delta-tracked distance bounds the gather, and a
-                // collision before the surface ends the camera path.
+                // collision before the surface ends the camera path (beams covered it).
                 FreeFlight ff = sample_free_flight(m, p.pos, p.dir, t_hit, p.rng, local);
                 double t_end = ff.scattered ? ff.t : t_hit;
                 p.radiance += p.throughput * gather(p, t_end, local, pairs);
                 if (ff.scattered) p.alive = false;
             }
-            lookups += local.density_lookups;
+            lookups += p.gathering ? local.density_lookups : 0;
             if (!p.alive || is_black(p.throughput)) {
                 p.alive = false;
                 continue;
@@ -159,6 +170,45 @@ size_t PhotonBeams::shade(const Hits &hits) {
     return queued;
 }
 
+void PhotonBeams::queue_shadow(BeamGatherPath &p, size_t slot, const LightSample &ls, const RGB &f,
+                               double pdf_dir, const Vec3 &origin, int medium) {
+    if (!ls.valid || is_black(f)) return;
+    double w = ls.delta ? 1.0 : power_heuristic(ls.pdf, pdf_dir);
+    ShadowRay &r = shadow_.rays[slot];
+    r.dir = ls.wi;
+    r.to_infinity = !std::isfinite(ls.dist);
+    r.target = r.to_infinity ? Vec3() : ls.point;
+    r.target_eps = r.to_infinity ? 0 : 2 * scene_->offset_length(ls.point);
+    r.restart_at(origin);
+    r.medium = medium;
+    r.contribution = p.throughput * f * ls.value * w;
+    r.rng = p.rng.split(uint64_t(p.depth));
+    r.live = !is_black(r.contribution);
+    r.receiver = int64_t(&p - paths_.data());
+}
+
+void PhotonBeams::scatter_in_medium(BeamGatherPath &p, size_t slot, const Vec3 &x) {
+    const Medium &m = scene_->media[p.medium];
+    if (++p.depth >= max_depth_ && max_depth_ >= 0) {
+        p.alive = false;
+        return;
+    }
+    Vec3 wo = -p.dir;
+    LightSample ls = scene_->sample_light(x, p.rng);
+    if (ls.valid) {
+        double f = phase_eval(m.phase, wo, ls.wi);
+        queue_shadow(p, slot, ls, RGB(f), f, x, p.medium);
+    }
+    double pdf;
+    double u1 = p.rng.next(), u2 = p.rng.next();
+    p.dir = phase_sample(m.phase, wo, u1, u2, pdf);  // exact sampling: weight 1
+    p.prev_pos = x;
+    p.prev_pdf = pdf;
+    p.prev_delta = false;
+    p.pos = x;
+    p.alive = russian_roulette(p);
+}
+
 void PhotonBeams::scatter_on_surface(BeamGatherPath &p, size_t slot, int tri, const Vec3 &x) {
     const Triangle &T = scene_->triangles[tri];
     const Material &mat = scene_->materials[T.material];
@@ -168,25 +218,14 @@ void PhotonBeams::scatter_on_surface(BeamGatherPath &p, size_t slot, int tri, co
     }
     Vec3 wo = -p.dir;
     if (!mat.is_delta()) {
-        // Next-event estimation, power heuristic against BSDF sampling (as pt).
+        // Next-event estimation, power heuristic against BSDF sampling (as pt). Past
+        // the last gathering bounce the path scatters in media itself.
+        p.gathering = ++p.diffuse_bounces <= gather_diffuse_bounces_;
         LightSample ls = scene_->sample_light(x, p.rng);
         if (ls.valid) {
             RGB f = bsdf_eval(mat, T.n, wo, ls.wi);
-            if (!is_black(f)) {
-                double pdf = bsdf_pdf(mat, T.n, wo, ls.wi);
-                double w = ls.delta ? 1.0 : power_heuristic(ls.pdf, pdf);
-                ShadowRay &r = shadow_.rays[slot];
-                r.dir = ls.wi;
-                r.to_infinity = !std::isfinite(ls.dist);
-                r.target = r.to_infinity ? Vec3() : ls.point;
-                r.target_eps = r.to_infinity ? 0 : 2 * scene_->offset_length(ls.point);
-                r.restart_at(scene_->offset(x, tri, ls.wi));
-                r.medium = T.medium_after(p.medium, ls.wi);
-                r.contribution = p.throughput * f * ls.value * w;
-                r.rng = p.rng.split(uint64_t(p.depth));
-                r.live = !is_black(r.contribution);
-                r.receiver = int64_t(&p - paths_.data());
-            }
+            double pdf = bsdf_pdf(mat, T.n, wo, ls.wi);
+            queue_shadow(p, slot, ls, f, pdf, scene_->offset(x, tri, ls.wi), T.medium_after(p.medium, ls.wi));
         }
     }
     double u1 = p.rng.next(), u2 = p.rng.next(), u3 = p.rng.next();

@@ -20,12 +20,16 @@
 // distance is sampled by delta tracking and only beams before it are gathered
 // (the camera ray is a short query ray; weight 1 for gray extinction).
 //
-// Surfaces are handled as a path tracer does (pt.h): emission with MIS,
-// next-event estimation and BSDF sampling at diffuse surfaces, specular and
-// null surfaces followed. So the path space splits by the camera path's first
-// medium vertex: paths with one are estimated by beams (every light-side
-// prefix, any depth), paths without one by the surface path tracer; nothing is
-// counted twice. Depth (Mitsuba's max_depth): a beam gathered after s surface
+// Surfaces are path traced as in pt.h: emission with MIS, next-event
+// estimation and BSDF sampling at diffuse surfaces, specular and null surfaces
+// followed. Beams serve the camera path's media until it has bounced off
+// `gather_diffuse_bounces` + 1 diffuse surfaces; from there on the path scatters
+// in media itself (free flight, next-event estimation from the medium, phase
+// sampling). So the path space splits by where the camera path's first medium
+// vertex lies: before the (k+1)-th diffuse surface -> beams (every light-side
+// prefix, any depth), otherwise (or none) -> path tracing; nothing is counted
+// twice. A small k keeps the expensive beam queries to a few segments per
+// pixel sample. Depth (Mitsuba's max_depth): a beam gathered after s surface
 // events on the camera side makes a path of beam.depth + 1 + s events.
 #pragma once
 
@@ -50,6 +54,8 @@ struct BeamGatherPath {
     int medium = -1;
     int null_crossings = 0;
     bool prev_delta = true;
+    int diffuse_bounces = 0;
+    bool gathering = true;  // media are still estimated by beams (diffuse_bounces <= limit)
     bool alive = false;
     Sampler rng;
 };
@@ -65,7 +71,8 @@ class PhotonBeams {
 public:
     // radius: r_1 of the schedule r_i = r_1 i^(alpha - 1) (Knaus & Zwicker 2011, d = 1).
     PhotonBeams(std::shared_ptr<const Scene> scene, int max_depth, int rr_depth, uint64_t seed,
-                int spp_per_iteration, int threads, size_t max_beams, double radius, double alpha);
+                int spp_per_iteration, int threads, size_t max_beams, double radius, double alpha,
+                int gather_diffuse_bounces);
 
     size_t capacity() const { return paths_.size(); }
     // Pass 1: the beams of this iteration's light paths, with the iteration's radius.
@@ -88,12 +95,16 @@ public:
 private:
     RGB gather(BeamGatherPath &p, double t_end, MediumStats &local, uint64_t &pairs) const;
     void scatter_on_surface(BeamGatherPath &p, size_t slot, int tri, const Vec3 &x);
+    void scatter_in_medium(BeamGatherPath &p, size_t slot, const Vec3 &x);
+    void queue_shadow(BeamGatherPath &p, size_t slot, const LightSample &ls, const RGB &f, double pdf_dir,
+                      const Vec3 &origin, int medium);
     bool russian_roulette(BeamGatherPath &p);
 
     std::shared_ptr<const Scene> scene_;
     int max_depth_, rr_depth_;
     uint64_t seed_;
     int spp_per_iteration_, threads_;
+    int gather_diffuse_bounces_;
     std::vector<BeamGatherPath> paths_;
     std::vector<int32_t> active_;
     ShadowQueue shadow_;

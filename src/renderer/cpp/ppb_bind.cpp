@@ -73,9 +73,9 @@ void bind_ppb(nb::module_ &m) {
         .def_prop_ro("truncated", &BeamBvh::truncated);
 
     nb::class_<PhotonBeams>(m, "PhotonBeams")
-        .def(nb::init<std::shared_ptr<const Scene>, int, int, uint64_t, int, int, size_t, double, double>(),
+        .def(nb::init<std::shared_ptr<const Scene>, int, int, uint64_t, int, int, size_t, double, double, int>(),
              "scene"_a, "max_depth"_a, "rr_depth"_a, "seed"_a, "spp_per_iteration"_a, "threads"_a, "max_beams"_a,
-             "radius"_a, "alpha"_a)
+             "radius"_a, "alpha"_a, "gather_diffuse_bounces"_a)
         .def("radius", &PhotonBeams::radius, "iteration"_a)
         .def_prop_ro("capacity", &PhotonBeams::capacity)
         .def("build_beams", &PhotonBeams::build_beams, "light_paths"_a, "iteration"_a, "max_piece_length"_a,

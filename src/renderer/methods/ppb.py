@@ -14,7 +14,8 @@ One iteration is a sequence of passes:
 3. trace ``spp_per_iteration`` camera paths per pixel (``cpp/ppb.h``): every medium
    segment gathers the beams it passes within r_i of (BB1D), surfaces are handled as in
    pt (emission with MIS, next-event estimation, BSDF sampling), shadow rays resolved in
-   batches.
+   batches. After ``gather_bounces`` + 1 diffuse bounces a camera path stops gathering
+   and scatters in media itself, as pt does (the split keeps every path counted once).
 
 The estimate is consistent: its bias shrinks with the radius, its variance grows as
 1/r_i, and the mean over iterations converges with MSE ~ n^-min(alpha, 4 (1 - alpha)).
@@ -38,10 +39,20 @@ DEFAULT_LIGHT_PATHS = 1 << 13
 DEFAULT_MAX_BEAMS = 1 << 22
 # Initial radius and the longest BVH piece of a beam, relative to the scene's radius.
 DEFAULT_RADIUS = 0.01
-DEFAULT_PIECE_LENGTH = 0.03
+DEFAULT_PIECE_LENGTH = 0.1
 # alpha = 4 / (d + 4) with d = 1 minimises the asymptotic MSE (Knaus & Zwicker 2011).
 DEFAULT_ALPHA = 0.8
-_PARAMS = {"light_paths", "spp_per_iteration", "radius", "alpha", "max_beams", "piece_length"}
+# Diffuse bounces after which camera paths still gather beams (then they path-trace media).
+DEFAULT_GATHER_BOUNCES = 0
+_PARAMS = {
+    "light_paths",
+    "spp_per_iteration",
+    "radius",
+    "alpha",
+    "max_beams",
+    "piece_length",
+    "gather_bounces",
+}
 
 
 def scene_radius(triangles: np.ndarray) -> float:
@@ -131,6 +142,9 @@ class ProgressivePhotonBeams:
         radius = float(params.get("radius", DEFAULT_RADIUS))
         piece = float(params.get("piece_length", DEFAULT_PIECE_LENGTH))
         max_beams = int(params.get("max_beams", DEFAULT_MAX_BEAMS))
+        gather_bounces = int(params.get("gather_bounces", DEFAULT_GATHER_BOUNCES))
+        if gather_bounces < 0:
+            raise PgiError("method ppb: gather_bounces must be >= 0")
         if light_paths <= 0 or spp <= 0 or max_beams <= 0:
             raise PgiError("method ppb: light_paths, spp_per_iteration, max_beams must be positive")
         if not 0 < alpha <= 1:
@@ -164,6 +178,7 @@ class ProgressivePhotonBeams:
             max_beams,
             radius * size,
             alpha,
+            gather_bounces,
         )
         self.piece_length = piece * size
         self.paths = RayBatch(self.kernel.capacity)
