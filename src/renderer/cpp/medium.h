@@ -3,7 +3,8 @@
 // delta tracking (Woodcock et al. 1965) against the per-cell majorant; the
 // transmittance estimator is chosen per medium:
 //   Delta     track-length estimator: delta tracking, 1 if no real collision;
-//   Ratio     ratio tracking (Cramer 1978; Novak et al. 2014, sec. 4.1);
+//   Ratio     ratio tracking (Cramer 1978; Novak et al. 2014, sec. 4.1), with
+//             Russian roulette once the weight is below 0.1;
 //   Residual  residual ratio tracking (Novak et al. 2014, sec. 4.2): per majorant
 //             cell the control extinction is the cell's minimum, its transmittance
 //             is taken in closed form and only the residual is ratio tracked;
@@ -272,6 +273,21 @@ inline FreeFlight sample_free_flight(const Medium &m, const Vec3 &o, const Vec3 
     return f;
 }
 
+// Below this weight, ratio tracking plays Russian roulette: survive with
+// probability tr / kRouletteTransmittance at weight kRouletteTransmittance, else
+// stop at 0 (unbiased; saves the lookups that would refine a negligible value).
+constexpr double kRouletteTransmittance = 0.1;
+
+inline bool roulette_transmittance(double &tr, Sampler &rng) {
+    if (tr >= kRouletteTransmittance) return true;
+    if (tr > 0 && rng.next() * kRouletteTransmittance < tr) {
+        tr = kRouletteTransmittance;
+        return true;
+    }
+    tr = 0;
+    return false;
+}
+
 // Transmittance over [0, tmax): closed form in homogeneous media, the medium's
 // estimator in grids.
 inline RGB transmittance(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax, Sampler &rng,
@@ -296,6 +312,7 @@ inline RGB transmittance(const Medium &m, const Vec3 &o, const Vec3 &d, double t
             traverse_cells(m, o, d, tmax, [&](double t0, double t1, double maj, double minor) {
                 if (maj <= 0) return true;
                 tr *= std::exp(-minor * (t1 - t0));  // the control, in closed form
+                if (!roulette_transmittance(tr, rng)) return false;
                 double residual = maj - minor;
                 if (!(residual > 0)) return true;  // constant cell: the control is exact
                 double t = t0;
@@ -304,7 +321,7 @@ inline RGB transmittance(const Medium &m, const Vec3 &o, const Vec3 &d, double t
                     if (t >= t1) return true;
                     // (sigma - minor) / residual is the residual's null-collision ratio.
                     tr *= std::max(0.0, maj - grid_sigma_t(m, o + d * t, stats)) / residual;
-                    if (tr == 0) return false;
+                    if (!roulette_transmittance(tr, rng)) return false;
                 }
             });
             return RGB(tr);
@@ -316,7 +333,7 @@ inline RGB transmittance(const Medium &m, const Vec3 &o, const Vec3 &d, double t
                     t -= std::log1p(-rng.next()) / maj;
                     if (t >= t1) return true;
                     tr *= 1 - grid_sigma_t(m, o + d * t, stats) / maj;
-                    if (tr == 0) return false;
+                    if (!roulette_transmittance(tr, rng)) return false;
                 }
             });
             return RGB(tr);
