@@ -19,7 +19,8 @@ namespace pgi {
 
 class PointTree {
 public:
-    void build(const std::vector<Vec3> &points);
+    // Deterministic: the same tree whatever the thread count.
+    void build(const std::vector<Vec3> &points, int threads = 1);
     size_t size() const { return points_.size(); }
     size_t node_count() const { return nodes_.size(); }
 
@@ -101,10 +102,17 @@ private:
     struct Node {
         double lo[3], hi[3];
         uint32_t begin = 0, end = 0;
-        int left = -1;  // children at left and left + 1; -1 for a leaf
+        int left = -1;  // children at left and left + 1 (heap layout: 2 node + 1); -1 for a leaf
     };
     void build_node(int node, uint32_t begin, uint32_t end, int depth);
+    // Subtrees above this depth are built as parallel tasks.
+    static constexpr int kTaskDepth = 4;
 
+    struct Item {
+        Vec3 point;
+        uint32_t index;
+    };
+    std::vector<Item> items_;      // build only
     std::vector<Node> nodes_;
     std::vector<Vec3> points_;     // in tree order
     std::vector<uint32_t> order_;  // tree order -> input index

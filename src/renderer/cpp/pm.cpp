@@ -72,10 +72,10 @@ void PhotonGatherer::build_maps(const LightPathTracer &paths) {
     inv_light_paths_ = 1.0 / double(paths.paths_per_iteration());
     std::vector<Vec3> points(surface_photons_.size());
     for (size_t i = 0; i < points.size(); ++i) points[i] = surface_photons_[i].pos;
-    surface_tree_.build(points);
+    surface_tree_.build(points, threads_);
     points.resize(volume_photons_.size());
     for (size_t i = 0; i < points.size(); ++i) points[i] = volume_photons_[i].pos;
-    volume_tree_.build(points);
+    volume_tree_.build(points, threads_);
     stats_.surface_photons += surface_photons_.size();
     stats_.volume_photons += volume_photons_.size();
 }
