@@ -133,6 +133,17 @@ def test_max_depth_two_is_direct_light_only():
     _vs_pt(scene, 24, 1 << 14, 24, 64)
 
 
+def test_max_depth_one_sees_only_emitters():
+    """max_depth = 1: only the emission points connect; the light seen through fog."""
+    scene = load_small("cbox-fog", 16, 16, ("integrator.max_depth=1",))
+    _vs_pt(scene, 16, 1 << 13, 16, 64)
+    lt = LightTracing(scene, seed=0, threads=2, params={"light_paths": 1 << 13})
+    lt.run_iteration(0)
+    lit = lt.image().max(axis=-1) > 0
+    assert 0 < lit.sum() < 16  # the light's few pixels at the top of the image
+    assert lit[:4].sum() == lit.sum()
+
+
 def _render(name: str, threads: int, **params) -> np.ndarray:
     method = LightTracing(load_small(name, 16, 16), seed=5, threads=threads, params=params)
     for i in range(2):
