@@ -38,7 +38,7 @@ ESTIMATORS = {"delta": 0, "ratio": 1, "residual": 2, "raymarch": 3}
 THICKNESS = [1e-4, 1e-2, 1.0, 10.0, 1e2, 1e3]
 GRIDS = ["lumpy", "single-voxel"]
 FURNACE_ESTIMATORS = ["delta", "residual"]
-N_TESTS = len(THICKNESS) * len(GRIDS) * 3 + 2 + 2 * 2 + 4 + len(FURNACE_ESTIMATORS) * 3
+N_TESTS = len(THICKNESS) * len(GRIDS) * 3 + 2 + 2 * 2 + 4 + (len(FURNACE_ESTIMATORS) + 2) * 3
 LEVEL = stats.sidak(stats.ALPHA, N_TESTS)
 RAY = ((-0.2, -0.1, -0.3), (1.0, 0.9, 1.1))  # unit-cube frame
 
@@ -240,6 +240,38 @@ def test_heterogeneous_furnace_with_each_estimator(tmp_path, estimator):
     image_mean, image_se = stats.mean_and_se(images.mean(axis=(1, 2)))
     p = stats.t_p_value(image_mean, L, image_se, len(images) - 1)
     assert np.all(p >= LEVEL), (estimator, image_mean, image_se)
+
+
+@pytest.mark.parametrize("phase", [{"type": "rayleigh"}, {"type": "mie", "resolution": 512}])
+def test_furnace_with_rayleigh_and_mie_phase(tmp_path, phase):
+    """Sampled phase weights are exactly 1 in the renderer too: a conservative furnace with
+    these phase functions still converges to L."""
+    medium = {"type": "homogeneous", "sigma_t": [0.5, 1.0, 2.0], "albedo": 1.0, "phase": phase}
+    (tmp_path / "scene.yaml").write_text(yaml.safe_dump(furnace_yaml(medium, (0.5, 0.8, 0.2))))
+    est = ours(PathTracing, load_scene(tmp_path / "scene.yaml"), 24, seed=7, spp_per_wave=32)
+    image_mean, image_se = stats.mean_and_se(est.samples.mean(axis=(1, 2)))
+    p = stats.t_p_value(image_mean, L, image_se, len(est.samples) - 1)
+    assert np.all(p >= LEVEL), (phase, image_mean, image_se)
+
+
+# --------------------------------------------------------------------------- grazing cameras
+
+
+@pytest.mark.parametrize(
+    "origin,target",
+    [
+        ("[0.99, 0.0, 0.9]", "[0.99, 0.0, -1.0]"),  # in the boundary's x = 0.99 face, along it
+        ("[0.0, 0.2, 0.99]", "[0.0, 0.0, -1.0]"),  # on the z = 0.99 face, looking in
+        ("[0.99, 0.99, 0.99]", "[-1.0, -1.0, -1.0]"),  # on the boundary's corner
+    ],
+)
+def test_camera_on_medium_boundary_renders_finite(origin, target):
+    scene = load_small("fog-step", 10, 10, (f"camera.origin={origin}", f"camera.target={target}"))
+    method = PathTracing(scene, seed=0, threads=2, params={"spp_per_wave": 16})
+    method.run_iteration(0)
+    image = method.image()
+    assert np.all(np.isfinite(image)) and np.all(image >= 0) and image.max() > 0
+    assert method.stats()["nonfinite"] == 0
 
 
 # --------------------------------------------------------------------------- shipped scenes
