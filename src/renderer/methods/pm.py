@@ -58,6 +58,10 @@ class PhotonMapping:
         spp = int(params.get("spp_per_iteration", 1))
         if photons <= 0 or spp <= 0:
             raise PgiError(f"method {self.id}: photons and spp_per_iteration must be positive")
+        if spp_budget and spp_budget % spp:
+            raise PgiError(
+                f"method {self.id}: spp_per_iteration {spp} must divide the spp budget {spp_budget}"
+            )
         scale = float(params.get("radius_scale", DEFAULT_RADIUS_SCALE))
         size = scene_radius(self.native.triangles)
         self.radius = float(params.get("radius", scale * size))
