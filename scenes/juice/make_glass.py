@@ -31,7 +31,8 @@ def cylinder(segments: int = SEGMENTS) -> tuple[np.ndarray, np.ndarray]:
 def write_ply(path: Path, verts: np.ndarray, faces: np.ndarray) -> None:
     lines = ["ply", "format ascii 1.0", f"element vertex {len(verts)}",
              "property float x", "property float y", "property float z",
-             f"element face {len(faces)}", "property list uchar int vertex_indices", "end_header"]  # fmt: skip
+             f"element face {len(faces)}", "property list uchar int vertex_indices",
+             "end_header"]  # fmt: skip
     lines += [f"{x:.7g} {y:.7g} {z:.7g}" for x, y, z in verts]
     lines += [f"3 {a} {b} {c}" for a, b, c in faces]
     path.write_text("\n".join(lines) + "\n")

@@ -48,5 +48,7 @@ if __name__ == "__main__":
     out = Path(__file__).with_name("plume.vdb")
     d = plume()
     write_vdb(out, d, VOXEL, tuple(ORIGIN + 0.5 * VOXEL))
-    print(f"{out}: {np.count_nonzero(d)} active voxels, mean {d.mean():.4f}, "
-          f"{out.stat().st_size / 1e6:.2f} MB")
+    print(
+        f"{out}: {np.count_nonzero(d)} active voxels, mean {d.mean():.4f}, "
+        f"{out.stat().st_size / 1e6:.2f} MB"
+    )
