@@ -1,5 +1,6 @@
 """Generate plume.vdb: a procedural smoke plume written with pyopenvdb (no real .vdb can be
-downloaded here). Deterministic: the same file every run.
+downloaded here). Deterministic: the same voxels every run (OpenVDB stamps each file with a
+random UUID, so the bytes differ).
 
 A column rises from the floor, widening with height, its centre twisting around the vertical
 axis; fractal Perlin noise advected upwards breaks it into wisps, and a dense core runs up its
