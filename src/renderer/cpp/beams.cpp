@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <numeric>
 
 namespace pgi {
 
@@ -41,20 +40,26 @@ void BeamBvh::build(std::vector<Beam> beams, double radius, double max_piece_len
         }
     }
 
-    // Boxes and centroids of the pieces.
+    // Boxes and centroids of the pieces, sorted in place (no index indirection:
+    // the build streams through memory).
+    struct Item {
+        float lo[3], hi[3], c[3];
+        int32_t piece;
+    };
     size_t np = pieces_.size();
-    std::vector<Vec3> lo(np), hi(np), centre(np);
+    std::vector<Item> items(np);
     for (size_t i = 0; i < np; ++i) {
-        const Beam &b = beams_[pieces_[i].beam];
-        Vec3 a = b.origin + b.dir * pieces_[i].t0, c = b.origin + b.dir * pieces_[i].t1;
+        const Piece &p = pieces_[i];
+        Vec3 a = p.origin + p.dir * p.t0, c = p.origin + p.dir * p.t1;
+        Item &it = items[i];
         for (int k = 0; k < 3; ++k) {
-            lo[i][k] = std::min(a[k], c[k]) - radius;
-            hi[i][k] = std::max(a[k], c[k]) + radius;
+            it.lo[k] = float(std::min(a[k], c[k]) - radius);
+            it.hi[k] = float(std::max(a[k], c[k]) + radius);
+            it.c[k] = float(0.5 * (a[k] + c[k]));
         }
-        centre[i] = (a + c) * 0.5;
+        it.piece = int32_t(i);
     }
-    std::vector<int32_t> order(np);
-    std::iota(order.begin(), order.end(), 0);
+    const float kUp = std::numeric_limits<float>::infinity();
 
     // Build with an explicit stack of (node index, begin, end).
     nodes_.reserve(2 * np / kLeafSize + 1);
@@ -67,34 +72,35 @@ void BeamBvh::build(std::vector<Beam> beams, double radius, double max_piece_len
     while (!tasks.empty()) {
         Task t = tasks.back();
         tasks.pop_back();
-        Vec3 blo(kInf), bhi(-kInf), clo(kInf), chi(-kInf);
-        for (int32_t i = t.begin; i < t.end; ++i)
+        float blo[3] = {kUp, kUp, kUp}, bhi[3] = {-kUp, -kUp, -kUp};
+        float clo[3] = {kUp, kUp, kUp}, chi[3] = {-kUp, -kUp, -kUp};
+        for (int32_t i = t.begin; i < t.end; ++i) {
+            const Item &it = items[i];
             for (int k = 0; k < 3; ++k) {
-                int32_t p = order[i];
-                blo[k] = std::min(blo[k], lo[p][k]);
-                bhi[k] = std::max(bhi[k], hi[p][k]);
-                clo[k] = std::min(clo[k], centre[p][k]);
-                chi[k] = std::max(chi[k], centre[p][k]);
+                blo[k] = std::min(blo[k], it.lo[k]);
+                bhi[k] = std::max(bhi[k], it.hi[k]);
+                clo[k] = std::min(clo[k], it.c[k]);
+                chi[k] = std::max(chi[k], it.c[k]);
             }
+        }
         for (int k = 0; k < 3; ++k) {
-            // float boxes halve the tree's memory traffic; rounding outwards keeps them conservative.
-            nodes_[t.node].lo[k] = std::nextafter(float(blo[k]), -std::numeric_limits<float>::infinity());
-            nodes_[t.node].hi[k] = std::nextafter(float(bhi[k]), std::numeric_limits<float>::infinity());
+            // Rounding outwards keeps the float boxes conservative.
+            nodes_[t.node].lo[k] = std::nextafter(blo[k], -kUp);
+            nodes_[t.node].hi[k] = std::nextafter(bhi[k], kUp);
         }
         int32_t count = t.end - t.begin;
-        Vec3 extent = chi - clo;
-        int axis = extent.x > extent.y ? (extent.x > extent.z ? 0 : 2) : (extent.y > extent.z ? 1 : 2);
-        if (count <= kLeafSize || !(extent[axis] > 0)) {
+        float ex = chi[0] - clo[0], ey = chi[1] - clo[1], ez = chi[2] - clo[2];
+        int axis = ex > ey ? (ex > ez ? 0 : 2) : (ey > ez ? 1 : 2);
+        if (count <= kLeafSize || !(chi[axis] > clo[axis])) {
             nodes_[t.node].first = t.begin;
             nodes_[t.node].count = count;
             continue;
         }
         int32_t mid = t.begin + count / 2;
-        std::nth_element(order.begin() + t.begin, order.begin() + mid, order.begin() + t.end,
-                         [&](int32_t a, int32_t b) {
-                             // Ties broken by index: the same tree on every machine.
-                             return centre[a][axis] < centre[b][axis] ||
-                                    (centre[a][axis] == centre[b][axis] && a < b);
+        std::nth_element(items.begin() + t.begin, items.begin() + mid, items.begin() + t.end,
+                         [axis](const Item &a, const Item &b) {
+                             // Ties broken by piece index: the same tree on every machine.
+                             return a.c[axis] < b.c[axis] || (a.c[axis] == b.c[axis] && a.piece < b.piece);
                          });
         // The two children are allocated together: right = left + 1.
         int32_t left = int32_t(nodes_.size());
@@ -108,7 +114,7 @@ void BeamBvh::build(std::vector<Beam> beams, double radius, double max_piece_len
     }
     // Reorder pieces so that leaves index contiguous ranges.
     std::vector<Piece> sorted(np);
-    for (size_t i = 0; i < np; ++i) sorted[i] = pieces_[order[i]];
+    for (size_t i = 0; i < np; ++i) sorted[i] = pieces_[items[i].piece];
     pieces_.swap(sorted);
 }
 

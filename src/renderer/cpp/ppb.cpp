@@ -17,7 +17,26 @@ PhotonBeams::PhotonBeams(std::shared_ptr<const Scene> scene, int max_depth, int 
     paths_.resize(size_t(film_.width) * film_.height * spp_per_iteration_);
 }
 
+void PhotonBeams::set_surface_photons(double radius, double alpha) {
+    surface_photons_ = radius > 0;
+    if (surface_photons_) surface_schedule_ = RadiusSchedule(radius, alpha, 2);
+}
+
 void PhotonBeams::build_beams(const LightPathTracer &light, int64_t iteration, double max_piece_length) {
+    if (surface_photons_) {
+        // Direct light is next-event estimated: keep photons with depth >= 2.
+        photons_.clear();
+        std::vector<Vec3> points;
+        for (const LightVertex &v : light.vertices())
+            if (v.kind == VertexKind::Surface && v.depth >= 2) {
+                photons_.push_back(v);
+                points.push_back(v.pos);
+            }
+        photon_tree_.build(points);
+        photon_radius_ = surface_schedule_.radius(iteration);
+        photon_scale_ = 1.0 / (kPi * photon_radius_ * photon_radius_ * double(light.paths_per_iteration()));
+        stats_.photons += photons_.size();
+    }
     double radius = schedule_.radius(iteration);
     // Short beams: each recorded medium segment up to its sampled collision (or
     // the surface when none was sampled); the collision itself is a vertex of
@@ -209,6 +228,24 @@ void PhotonBeams::scatter_in_medium(BeamGatherPath &p, size_t slot, const Vec3 &
     p.alive = russian_roulette(p);
 }
 
+// Radiance leaving diffuse triangle `tri` at x towards -p.dir from the photons
+// within the surface radius; p.depth already counts the event at x.
+RGB PhotonBeams::gather_photons(const BeamGatherPath &p, int tri, const Vec3 &x) const {
+    RGB sum(0.0);
+    const Triangle &T = scene_->triangles[tri];
+    const Material &mat = scene_->materials[T.material];
+    if (dot(-p.dir, T.n) <= 0) return sum;  // one-sided
+    photon_tree_.query_sphere(x, photon_radius_, [&](size_t i, double) {
+        const LightVertex &v = photons_[i];
+        // The photon's vertex is x itself: v.depth + (p.depth - 1) events in all.
+        if (max_depth_ >= 0 && v.depth + p.depth - 1 >= max_depth_) return;
+        // Same surface orientation (photons across a corner or a thin wall belong elsewhere).
+        if (dot(scene_->triangles[v.triangle].n, T.n) < 0.9 || dot(v.wi, T.n) <= 0) return;
+        sum += v.power;
+    });
+    return sum * mat.reflectance * (kInvPi * photon_scale_);
+}
+
 void PhotonBeams::scatter_on_surface(BeamGatherPath &p, size_t slot, int tri, const Vec3 &x) {
     const Triangle &T = scene_->triangles[tri];
     const Material &mat = scene_->materials[T.material];
@@ -217,6 +254,20 @@ void PhotonBeams::scatter_on_surface(BeamGatherPath &p, size_t slot, int tri, co
         return;
     }
     Vec3 wo = -p.dir;
+    if (surface_photons_ && !mat.is_delta()) {
+        // The path ends here: direct light by NEE (full weight), the rest by photons.
+        LightSample ls = scene_->sample_light(x, p.rng);
+        if (ls.valid) {
+            RGB f = bsdf_eval(mat, T.n, wo, ls.wi);
+            LightSample full = ls;
+            full.pdf = 0;
+            full.delta = true;  // weight 1: no BSDF-sampled emission competes with it
+            queue_shadow(p, slot, full, f, 0, scene_->offset(x, tri, ls.wi), T.medium_after(p.medium, ls.wi));
+        }
+        p.radiance += p.throughput * gather_photons(p, tri, x);
+        p.alive = false;
+        return;
+    }
     if (!mat.is_delta()) {
         // Next-event estimation, power heuristic against BSDF sampling (as pt). Past
         // the last gathering bounce the path scatters in media itself.

@@ -20,7 +20,14 @@
 // distance is sampled by delta tracking and only beams before it are gathered
 // (the camera ray is a short query ray; weight 1 for gray extinction).
 //
-// Surfaces are path traced as in pt.h: emission with MIS, next-event
+// Surfaces, with surface photons on (the default of methods/ppb.py): the
+// camera path ends at its first diffuse surface D, whose outgoing radiance is
+// emission + next-event estimation (light -> D directly, no MIS: nothing else
+// samples it) + a density estimate of the photons that arrived at D after at
+// least one scattering event (Jensen 1996; radius of a d = 2 schedule). This
+// is how the progressive photon-beam papers treat surfaces, and it turns
+// surface caustics (light -> glass -> D) from fireflies into a blur.
+// Without surface photons, surfaces are path traced as in pt.h: emission with MIS, next-event
 // estimation and BSDF sampling at diffuse surfaces, specular and null surfaces
 // followed. Beams serve the camera path's media until it has bounced off
 // `gather_diffuse_bounces` + 1 diffuse surfaces; from there on the path scatters
@@ -37,6 +44,7 @@
 
 #include "beams.h"
 #include "lightpath.h"
+#include "photon_map.h"
 #include "radius_schedule.h"
 #include "wavefront.h"
 
@@ -62,6 +70,7 @@ struct BeamGatherPath {
 
 // Counts of one run (all iterations).
 struct BeamStats {
+    uint64_t photons = 0;         // surface photons stored
     uint64_t beams = 0;           // stored
     uint64_t beam_pairs = 0;      // camera-segment x beam pairs gathered
     uint64_t density_lookups = 0;
@@ -73,11 +82,17 @@ public:
     PhotonBeams(std::shared_ptr<const Scene> scene, int max_depth, int rr_depth, uint64_t seed,
                 int spp_per_iteration, int threads, size_t max_beams, double radius, double alpha,
                 int gather_diffuse_bounces);
+    // Surface photons at the first diffuse surface (radius r_1 of a d = 2 schedule);
+    // off (radius 0) leaves surfaces to path tracing.
+    void set_surface_photons(double radius, double alpha);
 
     size_t capacity() const { return paths_.size(); }
     // Pass 1: the beams of this iteration's light paths, with the iteration's radius.
     void build_beams(const LightPathTracer &light, int64_t iteration, double max_piece_length);
     double radius(int64_t iteration) const { return schedule_.radius(iteration); }
+    double surface_radius(int64_t iteration) const {
+        return surface_photons_ ? surface_schedule_.radius(iteration) : 0.0;
+    }
     // Pass 2: camera rays; returns the count.
     size_t begin_wave(int64_t iteration, const RayBuffers &out);
     // Pass 3: gather beams along each traced segment, then the surface (emission,
@@ -96,6 +111,7 @@ private:
     RGB gather(BeamGatherPath &p, double t_end, MediumStats &local, uint64_t &pairs) const;
     void scatter_on_surface(BeamGatherPath &p, size_t slot, int tri, const Vec3 &x);
     void scatter_in_medium(BeamGatherPath &p, size_t slot, const Vec3 &x);
+    RGB gather_photons(const BeamGatherPath &p, int tri, const Vec3 &x) const;
     void queue_shadow(BeamGatherPath &p, size_t slot, const LightSample &ls, const RGB &f, double pdf_dir,
                       const Vec3 &origin, int medium);
     bool russian_roulette(BeamGatherPath &p);
@@ -111,6 +127,11 @@ private:
     Film film_;
     BeamBvh bvh_;
     RadiusSchedule schedule_;
+    bool surface_photons_ = false;
+    RadiusSchedule surface_schedule_;
+    std::vector<LightVertex> photons_;  // surface vertices after at least one scattering
+    PointTree photon_tree_;
+    double photon_radius_ = 0, photon_scale_ = 0;  // r and 1 / (pi r^2 N_light_paths)
     double beam_scale_ = 0;  // 1 / (2 r N_light_paths)
     BeamStats stats_;
     MediumStats medium_stats_;

@@ -77,6 +77,9 @@ void bind_ppb(nb::module_ &m) {
              "scene"_a, "max_depth"_a, "rr_depth"_a, "seed"_a, "spp_per_iteration"_a, "threads"_a, "max_beams"_a,
              "radius"_a, "alpha"_a, "gather_diffuse_bounces"_a)
         .def("radius", &PhotonBeams::radius, "iteration"_a)
+        .def("surface_radius", &PhotonBeams::surface_radius, "iteration"_a)
+        .def("set_surface_photons", &PhotonBeams::set_surface_photons, "radius"_a, "alpha"_a)
+        .def_prop_ro("photons_stored", [](const PhotonBeams &pb) { return pb.stats().photons; })
         .def_prop_ro("capacity", &PhotonBeams::capacity)
         .def("build_beams", &PhotonBeams::build_beams, "light_paths"_a, "iteration"_a, "max_piece_length"_a,
              nb::call_guard<nb::gil_scoped_release>())

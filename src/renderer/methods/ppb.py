@@ -12,10 +12,13 @@ One iteration is a sequence of passes:
 2. build the beam BVH (``cpp/beams.h``) with this iteration's radius
    r_i = r_1 * i^(alpha - 1);
 3. trace ``spp_per_iteration`` camera paths per pixel (``cpp/ppb.h``): every medium
-   segment gathers the beams it passes within r_i of (BB1D), surfaces are handled as in
-   pt (emission with MIS, next-event estimation, BSDF sampling), shadow rays resolved in
-   batches. After ``gather_bounces`` + 1 diffuse bounces a camera path stops gathering
-   and scatters in media itself, as pt does (the split keeps every path counted once).
+   segment gathers the beams it passes within r_i of (BB1D); specular surfaces are
+   followed; at the first diffuse surface the path ends with emission, next-event
+   estimation and a density estimate of the surface photons that arrived there after
+   at least one scattering (radius of a d = 2 schedule). Shadow rays are resolved in
+   batches. With ``surface_radius=0`` surfaces are path traced as in pt instead, and
+   after ``gather_bounces`` + 1 diffuse bounces a camera path stops gathering and
+   scatters in media itself (the split keeps every path counted once).
 
 The estimate is consistent: its bias shrinks with the radius, its variance grows as
 1/r_i, and the mean over iterations converges with MSE ~ n^-min(alpha, 4 (1 - alpha)).
@@ -39,10 +42,15 @@ DEFAULT_LIGHT_PATHS = 1 << 13
 DEFAULT_MAX_BEAMS = 1 << 22
 # Initial radius and the longest BVH piece of a beam, relative to the scene's radius.
 DEFAULT_RADIUS = 0.01
-DEFAULT_PIECE_LENGTH = 0.1
+DEFAULT_PIECE_LENGTH = 0.2
 # alpha = 4 / (d + 4) with d = 1 minimises the asymptotic MSE (Knaus & Zwicker 2011).
 DEFAULT_ALPHA = 0.8
-# Diffuse bounces after which camera paths still gather beams (then they path-trace media).
+# Surface photons (at the camera path's first diffuse surface): initial radius relative to
+# the scene radius (0: path-trace surfaces instead) and alpha = 4 / (d + 4) for d = 2.
+DEFAULT_SURFACE_RADIUS = 0.02
+DEFAULT_SURFACE_ALPHA = 2 / 3
+# Without surface photons: diffuse bounces after which camera paths still gather beams
+# (then they path-trace media).
 DEFAULT_GATHER_BOUNCES = 0
 _PARAMS = {
     "light_paths",
@@ -52,6 +60,8 @@ _PARAMS = {
     "max_beams",
     "piece_length",
     "gather_bounces",
+    "surface_radius",
+    "surface_alpha",
 }
 
 
@@ -143,12 +153,17 @@ class ProgressivePhotonBeams:
         piece = float(params.get("piece_length", DEFAULT_PIECE_LENGTH))
         max_beams = int(params.get("max_beams", DEFAULT_MAX_BEAMS))
         gather_bounces = int(params.get("gather_bounces", DEFAULT_GATHER_BOUNCES))
+        surface_radius = float(params.get("surface_radius", DEFAULT_SURFACE_RADIUS))
+        surface_alpha = float(params.get("surface_alpha", DEFAULT_SURFACE_ALPHA))
         if gather_bounces < 0:
             raise PgiError("method ppb: gather_bounces must be >= 0")
         if light_paths <= 0 or spp <= 0 or max_beams <= 0:
             raise PgiError("method ppb: light_paths, spp_per_iteration, max_beams must be positive")
-        if not 0 < alpha <= 1:
-            raise PgiError(f"method ppb: alpha must lie in (0, 1], got {alpha}")
+        for key, a in (("alpha", alpha), ("surface_alpha", surface_alpha)):
+            if not 0 < a <= 1:
+                raise PgiError(f"method ppb: {key} must lie in (0, 1], got {a}")
+        if surface_radius < 0:
+            raise PgiError("method ppb: surface_radius must be >= 0 (0: path-traced surfaces)")
         if not radius > 0 or not piece > 0:
             raise PgiError("method ppb: radius and piece_length must be positive")
         if spp_budget and spp_budget % spp:
@@ -164,7 +179,7 @@ class ProgressivePhotonBeams:
             threads=threads,
             paths=light_paths,
             max_records=2 * max_beams,
-            vertices=False,
+            vertices=surface_radius > 0,
         )
         per_triangle, per_light = emission_media(self.native, self.tracer, scene, seed)
         self.light_paths.kernel.set_emission_media(per_triangle.tolist(), per_light.tolist())
@@ -180,6 +195,7 @@ class ProgressivePhotonBeams:
             alpha,
             gather_bounces,
         )
+        self.kernel.set_surface_photons(surface_radius * size, surface_alpha)
         self.piece_length = piece * size
         self.paths = RayBatch(self.kernel.capacity)
         self.shadows = RayBatch(self.kernel.capacity)
@@ -214,7 +230,9 @@ class ProgressivePhotonBeams:
             "spp_per_iteration": self.spp_per_iteration,
             "light_paths_per_iteration": self.light_paths.paths,
             "radius": float(self.kernel.radius(max(self.iterations - 1, 0))),
+            "surface_radius": float(self.kernel.surface_radius(max(self.iterations - 1, 0))),
             "beams": int(self.kernel.beams_stored),
+            "surface_photons": int(self.kernel.photons_stored),
             "beams_truncated": int(self.kernel.beams_truncated),
             "beam_pairs": int(self.kernel.beam_pairs),
             "rays": int(self.tracer.rays_traced),

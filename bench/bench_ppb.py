@@ -1,0 +1,119 @@
+"""ppb against pt and Mitsuba volpath at equal time, with fitted convergence slopes.
+
+    python bench/bench_ppb.py [--scenes volcaustic cbox-fog] [--budgets 2 4 8 16]
+                              [--size 48] [--threads 2] [--seeds 1]
+
+Each method runs once per seed up to the largest budget; its image is taken whenever its
+render time passes a budget (one run gives the whole error-vs-time curve, as the workflow's
+snapshots do). relMSE is measured against a Mitsuba reference rendered as two independent
+halves (cached under bench/.cache/); the halves' own relMSE bounds the reference error and
+is printed next to the results. The log-log slope of relMSE against time is fitted over the
+budgets (compare.convergence.fit_slope).
+
+Targets (reported, never asserted; timings on a shared machine are noisy):
+  - volcaustic, largest budget: ppb's relMSE at least 10x below both pt and Mitsuba;
+  - cbox-fog: ppb's fitted MSE slope steeper than -0.5.
+The full study (budgets 2..64 s, 256 x 256, several seeds) needs references of about
+10^5 spp on volcaustic (its caustic is found by Mitsuba's volpath only by chance: the
+reference error must stay well below ppb's) and about 1.5 h of renders per scene and seed
+on two cores: run it with the workflow (configs/) rather than this script.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+
+from compare.convergence import fit_slope
+from compare.metrics import compare_images
+from renderer.imageio import read_exr, write_exr
+from renderer.methods import get_method
+from renderer.reference import render_reference
+from renderer.scene import load_scene
+
+CACHE = Path(__file__).resolve().parent / ".cache"
+METHODS = ("pt", "ppb", "mitsuba")
+# Reference samples per pixel per half: the caustic scene needs many more.
+REFERENCE_SPP = {"volcaustic": 4096, "cbox-fog": 2048}
+
+
+def curve(method_id: str, scene, budgets: list[float], threads: int, seed: int) -> list[dict]:
+    """Images (and stats) of one run at each budget of render time."""
+    method = get_method(method_id)(scene, seed=seed, threads=threads, params={})
+    out, elapsed, i = [], 0.0, 0
+    pending = sorted(budgets)
+    while pending:
+        start = time.perf_counter()
+        method.run_iteration(i)
+        elapsed += time.perf_counter() - start
+        i += 1
+        while pending and elapsed >= pending[0]:
+            out.append(
+                dict(
+                    budget=pending.pop(0),
+                    seconds=elapsed,
+                    image=method.image(),
+                    stats=method.stats(),
+                )
+            )
+    return out
+
+
+def reference(scene, name: str, size: int, spp: int) -> tuple[np.ndarray, float]:
+    """The merged reference and the relMSE between its two halves."""
+    halves = []
+    for half in (0, 1):
+        path = CACHE / f"ppb-{name}-{size}-{spp}-half{half}.exr"
+        if not path.exists():
+            print(f"  reference {name}: half {half}, {spp} spp at {size}x{size} ...", flush=True)
+            image, _ = render_reference(scene, spp, seed=7919 * (half + 1))
+            write_exr(path, image)
+        halves.append(read_exr(path).astype(np.float64))
+    merged = 0.5 * (halves[0] + halves[1])
+    # relMSE of one half against the other is about 4x that of the merged mean.
+    return merged, compare_images(halves[0], halves[1])["relmse"] / 4
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenes", nargs="+", default=["volcaustic", "cbox-fog"])
+    parser.add_argument("--budgets", nargs="+", type=float, default=[2, 4, 8, 16])
+    parser.add_argument("--size", type=int, default=48, help="film width and height")
+    parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--seeds", type=int, default=1)
+    parser.add_argument("--reference-spp", type=int, default=0, help="per half; 0: per scene")
+    args = parser.parse_args()
+    CACHE.mkdir(exist_ok=True)
+
+    for name in args.scenes:
+        scene = load_scene(name, [f"film.width={args.size}", f"film.height={args.size}"])
+        spp = args.reference_spp or REFERENCE_SPP.get(name, 4096)
+        ref, ref_err = reference(scene, name, args.size, spp)
+        print(f"\n{name} ({args.size}x{args.size}; reference relMSE ~ {ref_err:.2e})", flush=True)
+        final = {}
+        for method_id in METHODS:
+            errors = np.zeros((args.seeds, len(args.budgets)))
+            for seed in range(args.seeds):
+                for k, snap in enumerate(curve(method_id, scene, args.budgets, args.threads, seed)):
+                    errors[seed, k] = compare_images(snap["image"], ref)["relmse"]
+            mean = errors.mean(axis=0)
+            fit = fit_slope(args.budgets, mean)
+            final[method_id] = mean[-1]
+            cells = "  ".join(f"{b:g}s {e:.3e}" for b, e in zip(args.budgets, mean, strict=True))
+            print(
+                f"  {method_id:<8} relMSE {cells}  slope {fit.slope:+.2f} (r2 {fit.r2:.2f})",
+                flush=True,
+            )
+        largest = args.budgets[-1]
+        print(
+            f"  at {largest:g} s: pt/ppb {final['pt'] / final['ppb']:.1f}x, "
+            f"mitsuba/ppb {final['mitsuba'] / final['ppb']:.1f}x lower error for ppb",
+            flush=True,
+        )
+
+
+if __name__ == "__main__":
+    main()
