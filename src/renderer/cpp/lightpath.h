@@ -22,8 +22,8 @@
 //
 // Units: `power` is a flux weight. For any function g of a vertex,
 //   E[ sum over the iteration's vertices of power * g(vertex) ] / paths_per_iteration
-// is the integral of g against the scene's emitted flux after the recorded
-// bounces (Veach's particle-tracing measurement, eq. 10.x): divide sums by
+// is the integral of g against the flux arriving at such vertices (Veach 1997,
+// sec. 10.2, particle tracing as a measurement): divide sums by
 // paths_per_iteration(), never by the number of records.
 //   - Emission vertices (area lights only; point, spot and directional
 //     emitters cannot be seen by a pinhole camera): power = Le / pdf_A (pdf_A
