@@ -74,6 +74,7 @@ def cmd_render(args: argparse.Namespace) -> int:
         spp=args.spp,
         snapshots=args.snapshots or (),
         params=params,
+        overrides=overrides,
     )
     info = render(scene, settings, out, progress=not args.quiet)
     print(
@@ -93,7 +94,14 @@ def cmd_reference(args: argparse.Namespace) -> int:
     overrides, _ = _split_sets(args.set)
     scene = load_scene(args.scene, overrides)
     image, info = render_reference(scene, args.spp, seed=args.seed, threads=args.threads)
-    info = dict(info, scene=scene.name, version=__version__, spp=args.spp, seed=args.seed)
+    info = dict(
+        info,
+        scene=scene.name,
+        version=__version__,
+        spp=args.spp,
+        seed=args.seed,
+        overrides=overrides,
+    )
     write_exr(out, image, info)
     write_json(out.with_suffix(".json"), info)
     print(f"{out}: Mitsuba reference, {args.spp} spp")

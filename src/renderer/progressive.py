@@ -34,6 +34,7 @@ class RenderSettings:
     spp: int | None = None  # stop after this many samples per pixel
     snapshots: Sequence[float] = ()  # render times at which to write intermediate images
     params: dict = field(default_factory=dict)
+    overrides: Sequence[str] = ()  # scene overrides the scene was loaded with (for the record)
 
 
 def snapshot_path(out: Path, seconds: float) -> Path:
@@ -116,6 +117,7 @@ def render(
         "scene_file": str(scene.path),
         "method": settings.method,
         "params": settings.params,
+        "overrides": list(settings.overrides),
         "seed": settings.seed,
         "threads": settings.threads,
         "time_budget": budget,

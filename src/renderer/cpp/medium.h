@@ -88,7 +88,14 @@ struct Medium {
 struct MediumStats {
     uint64_t density_lookups = 0;
     uint64_t segments = 0;  // ray segments tracked through grid media (both estimators)
+    MediumStats &operator+=(const MediumStats &o) {
+        density_lookups += o.density_lookups;
+        segments += o.segments;
+        return *this;
+    }
 };
+// Lets OpenMP loops sum per-thread counts: reduction(+ : some_medium_stats).
+#pragma omp declare reduction(+ : MediumStats : omp_out += omp_in)
 
 // exp(-sigma * t) per channel, with zero extinction meaning 1 even at t = inf.
 inline RGB beer_lambert(const RGB &sigma, double t) {

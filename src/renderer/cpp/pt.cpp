@@ -43,9 +43,9 @@ size_t PathTracer::begin_wave(int64_t iteration, const RayBuffers &out) {
 
 size_t PathTracer::shade(const Hits &hits) {
     const Scene &scene = *scene_;
-    uint64_t lookups = 0;
+    MediumStats counts;
     shadow_.reset(hits.count);
-#pragma omp parallel for schedule(dynamic, 256) num_threads(threads_) reduction(+ : lookups)
+#pragma omp parallel for schedule(dynamic, 256) num_threads(threads_) reduction(+ : counts)
     for (int64_t k = 0; k < int64_t(hits.count); ++k) {
         CameraPath &p = paths_[active_[k]];
         shadow_[k].live = false;
@@ -54,9 +54,7 @@ size_t PathTracer::shade(const Hits &hits) {
 
         // Medium: a real collision before the surface scatters the path there.
         if (p.medium >= 0) {
-            MediumStats local;
-            FreeFlight ff = sample_free_flight(scene.media[p.medium], p.pos, p.dir, t_hit, p.rng, local);
-            lookups += local.density_lookups;
+            FreeFlight ff = sample_free_flight(scene.media[p.medium], p.pos, p.dir, t_hit, p.rng, counts);
             p.throughput *= ff.weight;
             if (ff.scattered) {
                 scatter_in_medium(p, k, p.pos + p.dir * ff.t);
@@ -87,7 +85,7 @@ size_t PathTracer::shade(const Hits &hits) {
         }
         scatter_on_surface(p, k, tri, x);
     }
-    stats_.density_lookups += lookups;
+    stats_ += counts;
     return shadow_.live();
 }
 

@@ -54,6 +54,7 @@ public:
 
     const Film &film() const { return film_; }
     uint64_t density_lookups() const { return stats_.density_lookups; }
+    uint64_t media_segments() const { return stats_.segments; }
     uint64_t paths_traced() const { return paths_traced_; }
     int threads() const { return threads_; }
 

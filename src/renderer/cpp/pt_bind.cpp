@@ -47,6 +47,7 @@ void bind_pt(nb::module_ &m) {
         .def_prop_ro("samples_per_pixel", [](const PathTracer &pt) { return pt.film().samples_per_pixel; })
         .def_prop_ro("nonfinite", [](const PathTracer &pt) { return pt.film().nonfinite; })
         .def_prop_ro("density_lookups", &PathTracer::density_lookups)
+        .def_prop_ro("media_segments", &PathTracer::media_segments)
         .def_prop_ro("paths_traced", &PathTracer::paths_traced);
 }
 

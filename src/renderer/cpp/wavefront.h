@@ -88,17 +88,15 @@ public:
     // contributions of rays that reached their target unoccluded.
     template <typename Deliver>
     void resolve(const Scene &scene, const Hits &hits, int threads, MediumStats &stats, Deliver &&deliver) {
-        uint64_t lookups = 0;
-#pragma omp parallel for schedule(static) num_threads(threads) reduction(+ : lookups)
+        MediumStats counts;
+#pragma omp parallel for schedule(static) num_threads(threads) reduction(+ : counts)
         for (int64_t k = 0; k < int64_t(rays.size()); ++k) {
             ShadowRay &r = rays[k];
-            MediumStats local;
             double remaining = r.remaining();
             bool blocked = hits.prim[k] >= 0 && hits.tfar[k] < remaining - r.target_eps;
             double t = blocked ? double(hits.tfar[k]) : remaining;
             if (r.medium >= 0) {
-                r.contribution *= transmittance(scene.media[r.medium], r.origin, r.dir, t, r.rng, local);
-                lookups += local.density_lookups;
+                r.contribution *= transmittance(scene.media[r.medium], r.origin, r.dir, t, r.rng, counts);
             }
             if (!blocked) {
                 r.live = false;
@@ -115,7 +113,7 @@ public:
             r.medium = T.medium_after(r.medium, r.dir);
             r.restart_at(scene.offset(p, tri, r.dir));
         }
-        stats.density_lookups += lookups;
+        stats += counts;
     }
 };
 

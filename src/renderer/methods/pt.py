@@ -87,5 +87,11 @@ class PathTracing:
             "rays": int(self.tracer.rays_traced),
             "nonfinite": int(self.kernel.nonfinite),
             "density_lookups": int(self.kernel.density_lookups),
+            "media_segments": int(self.kernel.media_segments),
+            "lookups_per_media_segment": (
+                self.kernel.density_lookups / self.kernel.media_segments
+                if self.kernel.media_segments
+                else 0.0
+            ),
             "dropped_degenerate_triangles": self.native.dropped_triangles,
         }
