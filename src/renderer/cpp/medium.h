@@ -82,6 +82,8 @@ struct Medium {
     double grid_sigma = 0;  // grid: extinction = grid_sigma * density (gray)
     Estimator estimator = Estimator::Ratio;  // grid: transmittance estimator
     double march_step = 0;  // grid, RayMarch: step length in world units along the ray
+    // Homogeneous with the same extinction in every channel: no spectral MIS needed.
+    bool gray() const { return sigma_t.x == sigma_t.y && sigma_t.y == sigma_t.z; }
 };
 
 // Counts of work done by media estimators, summed per thread.
@@ -99,6 +101,7 @@ struct MediumStats {
 
 // exp(-sigma * t) per channel, with zero extinction meaning 1 even at t = inf.
 inline RGB beer_lambert(const RGB &sigma, double t) {
+    if (sigma.x == sigma.y && sigma.y == sigma.z) return RGB(sigma.x > 0 ? std::exp(-sigma.x * t) : 1.0);
     RGB tr;
     for (int c = 0; c < 3; ++c) tr[c] = sigma[c] > 0 ? std::exp(-sigma[c] * t) : 1.0;
     return tr;
@@ -238,6 +241,17 @@ void ray_march(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax, Sampl
 inline FreeFlight sample_free_flight(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax,
                                      Sampler &rng, MediumStats &stats) {
     FreeFlight f;
+    if (m.type == MediumType::Homogeneous && m.gray()) {
+        // Exact distance sampling: the weight is the albedo on collision, 1 on passing.
+        double sig = m.sigma_t.x;
+        double t = sig > 0 ? -std::log1p(-rng.next()) / sig : kInf;
+        if (t < tmax) {
+            f.scattered = true;
+            f.t = t;
+            f.weight = m.albedo;
+        }
+        return f;
+    }
     if (m.type == MediumType::Homogeneous) {
         double uc = rng.next(), ut = rng.next();
         int channel = std::min(2, int(uc * 3));
