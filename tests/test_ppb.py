@@ -12,7 +12,11 @@ r_i = r_1 i^(alpha - 1), so its error is variance plus a shrinking bias. The tes
   for the default alpha = 0.8 in media, -1 for the path-traced surfaces; the band is wide
   because each fitted slope is itself noisy (seed-to-seed spread about +-0.2 here).
 
-Everything runs on a 16 x 16 Cornell box with fog, about a minute in all.
+- compare the image mean of two variants with pt's the same way: a density grid (cbox-grid:
+  short query rays and gray delta tracking) and path-traced surfaces (surface_radius=0,
+  gather_bounces=1).
+
+Everything runs on 16 x 16 films, about a minute of CPU time in all.
 """
 
 from __future__ import annotations
@@ -112,3 +116,34 @@ def test_unknown_and_bad_parameters_are_errors(scene):
         ProgressivePhotonBeams(scene, seed=0, threads=1, params={"radious": 0.1})
     with pytest.raises(PgiError, match="alpha"):
         ProgressivePhotonBeams(scene, seed=0, threads=1, params={"alpha": 1.5})
+
+
+@pytest.mark.parametrize(
+    "name,params",
+    [
+        ("cbox-grid", {}),  # density grid: short query rays, gray delta tracking
+        ("cbox-fog", {"surface_radius": 0.0, "gather_bounces": 1}),  # path-traced surfaces
+    ],
+    ids=["grid-medium", "path-traced-surfaces"],
+)
+def test_variants_image_mean_matches_pt(name, params):
+    scene = load_small(name, RES, RES)
+    pt = ours(PathTracing, scene, 16, spp_per_wave=256).image_mean()
+    method = ProgressivePhotonBeams(
+        scene, seed=3, threads=2, params={"light_paths": LIGHT_PATHS, **params}
+    )
+    images, previous = [], 0.0
+    for i in range(32):
+        method.run_iteration(i)
+        total = method.image() * (i + 1)
+        images.append(total - previous)
+        previous = total
+    assert method.stats()["nonfinite"] == 0
+    ppb = Estimate(np.stack(images)).image_mean()
+    allowance = BIAS_ALLOWANCE * pt.mean
+    widened = Estimate(
+        ppb.mean + (ppb.samples - ppb.mean) * np.sqrt(1 + (allowance / ppb.stderr) ** 2)
+    )
+    result = agreement(widened, pt, alpha=1e-3)
+    rel = (ppb.mean / pt.mean - 1).ravel()
+    assert result.max_abs_z < result.z_limit, f"{name}: {result}; relative difference {rel}"
