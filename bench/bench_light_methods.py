@@ -34,12 +34,13 @@ SCENES_DIR = Path(__file__).resolve().parent.parent / "scenes"
 METHODS = ("pt", "lt", "pm", "sppm", "mitsuba")
 
 
-def reference(scene, name: str, size: int, spp: int) -> np.ndarray:
+def reference(scene, name: str, size: int, spp: int, second: bool = False) -> np.ndarray:
+    """Cached Mitsuba reference; ``second``: an independent one (another seed)."""
     CACHE.mkdir(exist_ok=True)
-    path = CACHE / f"{name}-{size}-{spp}.exr"
+    path = CACHE / f"{name}-{size}-{spp}{'-b' if second else ''}.exr"
     if not path.exists():
         print(f"  rendering the reference of {name} ({spp} spp at {size}x{size}) ...", flush=True)
-        image, _ = render_reference(scene, spp, seed=12345)
+        image, _ = render_reference(scene, spp, seed=54321 if second else 12345)
         write_exr(path, image)
     return read_exr(path).astype(np.float64)
 
@@ -71,6 +72,12 @@ def main() -> None:
     parser.add_argument("--size", type=int, default=64, help="film width and height")
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--reference-spp", type=int, default=8192)
+    parser.add_argument(
+        "--reference-error",
+        action="store_true",
+        help="render a second, independent reference and print the references' own error "
+        "(half the relMSE between the two): methods near it are limited by the reference",
+    )
     args = parser.parse_args()
 
     header = (
@@ -86,6 +93,10 @@ def main() -> None:
             continue
         scene = load_scene(name, [f"film.width={args.size}", f"film.height={args.size}"])
         ref = reference(scene, name, args.size, args.reference_spp)
+        if args.reference_error:
+            other = reference(scene, name, args.size, args.reference_spp, second=True)
+            own = compare_images(other, ref)["relmse"] / 2
+            print(f"{name:<11} {'(ref)':<8} {own:10.3e}  <- the reference's own error", flush=True)
         for method_id in args.methods:
             times, errors, image, stats = timed_curve(
                 method_id, scene, args.seconds, args.threads, ref
