@@ -127,6 +127,11 @@ def test_directional_light_matches_pt(tmp_path):
     _vs_pt(load_scene(tmp_path / "scene.yaml"), 24, 1 << 14, 24, 64)
 
 
+def test_density_grid_matches_pt():
+    """cbox-grid: connections through a heterogeneous medium (ratio tracking)."""
+    _vs_pt(load_small("cbox-grid", 16, 16), 16, 1 << 13, 16, 32)
+
+
 def test_max_depth_two_is_direct_light_only():
     """max_depth = 2 (Mitsuba: emitters and direct light) gives pt's image."""
     scene = load_small("cbox-fog", 16, 16, ("integrator.max_depth=2",))
