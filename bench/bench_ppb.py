@@ -37,12 +37,14 @@ from renderer.scene import load_scene
 CACHE = Path(__file__).resolve().parent / ".cache"
 METHODS = ("pt", "ppb", "mitsuba")
 # Reference samples per pixel per half: the caustic scene needs many more.
-REFERENCE_SPP = {"volcaustic": 4096, "cbox-fog": 2048}
+REFERENCE_SPP = {"volcaustic": 16384, "cbox-fog": 2048}
 
 
-def curve(method_id: str, scene, budgets: list[float], threads: int, seed: int) -> list[dict]:
+def curve(
+    method_id: str, scene, budgets: list[float], threads: int, seed: int, params: dict
+) -> list[dict]:
     """Images of one run at each budget of render time."""
-    method = get_method(method_id)(scene, seed=seed, threads=threads, params={})
+    method = get_method(method_id)(scene, seed=seed, threads=threads, params=params)
     out, elapsed, i = [], 0.0, 0
     pending = sorted(budgets)
     while pending:
@@ -79,13 +81,21 @@ def reference(scene, name: str, size: int, spp: int) -> tuple[np.ndarray, float]
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", nargs="+", default=["volcaustic", "cbox-fog"])
+    parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
     parser.add_argument("--budgets", nargs="+", type=float, default=[2, 4, 8, 16])
     parser.add_argument("--size", type=int, default=48, help="film width and height")
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--seeds", type=int, default=1)
     parser.add_argument("--reference-spp", type=int, default=0, help="per half; 0: per scene")
+    parser.add_argument(
+        "--ppb", action="append", default=[], metavar="KEY=VALUE", help="a ppb parameter"
+    )
     args = parser.parse_args()
     CACHE.mkdir(exist_ok=True)
+    ppb_params = {k: float(v) for k, v in (kv.split("=", 1) for kv in args.ppb)}
+    for key in ("light_paths", "spp_per_iteration", "max_beams", "gather_bounces"):
+        if key in ppb_params:
+            ppb_params[key] = int(ppb_params[key])
 
     for name in args.scenes:
         scene = load_scene(name, [f"film.width={args.size}", f"film.height={args.size}"])
@@ -97,10 +107,12 @@ def main() -> None:
             flush=True,
         )
         final = {}
-        for method_id in METHODS:
+        for method_id in args.methods:
             errors = np.zeros((args.seeds, len(args.budgets)))
             for seed in range(args.seeds):
-                for k, snap in enumerate(curve(method_id, scene, args.budgets, args.threads, seed)):
+                params = ppb_params if method_id == "ppb" else {}
+                snaps = curve(method_id, scene, args.budgets, args.threads, seed, params)
+                for k, snap in enumerate(snaps):
                     errors[seed, k] = compare_images(snap["image"], ref)["relmse"]
             # relMSE against a noisy reference ~ the method's own + the reference's: the
             # corrected column subtracts the latter (estimated from the halves).
@@ -116,6 +128,8 @@ def main() -> None:
                 flush=True,
             )
         largest = args.budgets[-1]
+        if not {"pt", "ppb", "mitsuba"} <= set(final):
+            continue
         print(
             f"  at {largest:g} s: pt/ppb {final['pt'] / final['ppb']:.1f}x, "
             f"mitsuba/ppb {final['mitsuba'] / final['ppb']:.1f}x lower error for ppb",
