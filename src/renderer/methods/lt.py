@@ -21,8 +21,9 @@ from ..tracer import EmbreeTracer, RayBatch
 from .lightpath import LightPaths
 
 _DEFAULT_PATHS = 1 << 16
-# Vertices plus segments one iteration may record (about 64 bytes each).
-_DEFAULT_MAX_RECORDS = 1 << 24
+# Vertices one iteration may record: the memory bound. Each costs about 270 bytes with its
+# connection ray and splat, so the default bounds an iteration at about 2.3 GB.
+_DEFAULT_MAX_RECORDS = 1 << 23
 _PARAMS = {"light_paths", "max_records"}
 
 

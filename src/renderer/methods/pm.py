@@ -24,7 +24,8 @@ from .lightpath import LightPaths
 from .lt import check_params
 
 DEFAULT_PHOTONS = 1 << 16
-# Vertices one iteration may record (~90 bytes each with the photon maps): a bound on memory.
+# Vertices one iteration may record: the memory bound. Each costs about 200 bytes (the record,
+# its copy in a photon map and the kd-tree), so the default bounds an iteration at about 1.7 GB.
 DEFAULT_MAX_RECORDS = 1 << 23
 # Default radii relative to the scene's bounding-sphere radius.
 DEFAULT_RADIUS_SCALE = 0.02
