@@ -13,8 +13,9 @@ r_i = r_1 i^(alpha - 1), so its error is variance plus a shrinking bias. The tes
   because each fitted slope is itself noisy (seed-to-seed spread about +-0.2 here).
 
 - compare the image mean of two variants with pt's the same way: a density grid (cbox-grid:
-  short query rays and gray delta tracking) and path-traced surfaces (surface_radius=0,
-  gather_bounces=1).
+  short query rays and gray delta tracking), path-traced surfaces (surface_radius=0,
+  gather_bounces=1) and a sun whose light paths enter the fog through null windows
+  (crepuscular).
 
 Everything runs on 16 x 16 films, about a minute of CPU time in all.
 """
@@ -123,8 +124,9 @@ def test_unknown_and_bad_parameters_are_errors(scene):
     [
         ("cbox-grid", {}),  # density grid: short query rays, gray delta tracking
         ("cbox-fog", {"surface_radius": 0.0, "gather_bounces": 1}),  # path-traced surfaces
+        ("crepuscular", {}),  # a directional light entering the fog through null windows
     ],
-    ids=["grid-medium", "path-traced-surfaces"],
+    ids=["grid-medium", "path-traced-surfaces", "sun-through-windows"],
 )
 def test_variants_image_mean_matches_pt(name, params):
     scene = load_small(name, RES, RES)
