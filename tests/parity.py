@@ -82,15 +82,24 @@ class Agreement:
 def agreement(a: Estimate, b: Estimate, alpha: float = 1e-3) -> Agreement:
     """Two-sample z-scores of the means; chi-square of their squares and the largest |z|.
 
-    Values with zero variance on both sides (e.g. pixels that see nothing) must agree exactly.
+    The variances are estimated from K images each, so each difference over its standard
+    error follows Student's t with the Welch-Satterthwaite degrees of freedom, not a normal
+    law; it is mapped to the normal quantile of the same tail probability before the
+    chi-square and the |z| bound are applied. Values with zero variance on both sides (e.g.
+    pixels that see nothing) must agree exactly.
     """
     diff = a.mean - b.mean
-    var = a.stderr**2 + b.stderr**2
+    var_a, var_b = a.stderr**2, b.stderr**2
+    var = var_a + var_b
     exact = var == 0
     if np.any(exact):
         assert np.allclose(diff[exact], 0, atol=1e-12), "noise-free values differ"
-    z = diff[~exact] / np.sqrt(var[~exact])
+    ka, kb = len(a.samples), len(b.samples)
+    va, vb = var_a[~exact], var_b[~exact]
+    dof = (va + vb) ** 2 / (va**2 / (ka - 1) + vb**2 / (kb - 1))
+    t = diff[~exact] / np.sqrt(var[~exact])
+    z = stats.norm.isf(stats.t.sf(np.abs(t), dof)) * np.sign(t)
     chi2 = float(np.sum(z**2))
-    dof = int(z.size)
-    z_limit = float(stats.norm.isf(alpha / (2 * max(dof, 1))))
-    return Agreement(chi2, dof, float(stats.chi2.sf(chi2, dof)), float(np.abs(z).max()), z_limit)
+    n = int(z.size)
+    z_limit = float(stats.norm.isf(alpha / (2 * max(n, 1))))
+    return Agreement(chi2, n, float(stats.chi2.sf(chi2, n)), float(np.abs(z).max()), z_limit)
