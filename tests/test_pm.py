@@ -128,3 +128,34 @@ def test_bad_parameters_are_clear_errors():
         PhotonMapping(scene, seed=0, threads=1, params={"alpha": 0.5})
     with pytest.raises(PgiError, match="positive"):
         PhotonMapping(scene, seed=0, threads=1, params={"radius": 0})
+
+
+def test_specular_chains_are_gathered_through():
+    """cbox-glass: camera paths follow the glass sphere to the surfaces and fog behind it.
+
+    With the light's pixels left out, pm's image mean is within 3% of pt's (measured: -1.1%,
+    the blur of r = 0.04; pt's own standard error 0.7%). lt, which cannot connect through
+    the glass to a pinhole camera, is 6% low on the same pixels: the check can tell.
+    """
+    from renderer.methods.lt import LightTracing
+
+    scene = load_small("cbox-glass", 16, 16)
+    pt = ours(PathTracing, scene, 16, seed=5, spp_per_wave=64)
+    mask = pt.mean.max(axis=-1) < 1.0
+
+    def masked_mean(est: Estimate) -> float:
+        return float(est.mean[mask].mean())
+
+    pm = ours(
+        PhotonMapping,
+        scene,
+        8,
+        seed=1,
+        photons=1 << 15,
+        spp_per_iteration=16,
+        radius=0.04,
+        volume_radius=0.04,
+    )
+    lt = ours(LightTracing, scene, 8, light_paths=1 << 15)
+    assert abs(masked_mean(pm) / masked_mean(pt) - 1) < 0.03
+    assert masked_mean(lt) / masked_mean(pt) < 0.97
