@@ -89,20 +89,11 @@ size_t PhotonGatherer::begin_camera(int64_t iteration, const RayBuffers &out) {
     active_.resize(paths_.size());
 #pragma omp parallel for schedule(static) num_threads(threads_)
     for (int64_t i = 0; i < int64_t(paths_.size()); ++i) {
-        GatherPath &p = paths_[i];
         int64_t pixel = i % npix;
         int64_t sample = iteration * spp_per_iteration_ + i / npix;
-        p = GatherPath();
-        p.rng = Sampler(stream_key(seed_ ^ kGatherStreamTag, uint64_t(sample), uint64_t(pixel)));
-        p.pixel = pixel;
-        double fx = double(pixel % cam.width) + p.rng.next();
-        double fy = double(pixel / cam.width) + p.rng.next();
-        p.pos = cam.origin;
-        p.dir = cam.direction(fx, fy);
-        p.medium = cam.medium;
-        p.alive = true;
+        Sampler rng(stream_key(seed_ ^ kGatherStreamTag, uint64_t(sample), uint64_t(pixel)));
+        start_camera_path(paths_[i], cam, pixel, rng, out, size_t(i));
         active_[i] = int32_t(i);
-        out.put(i, p.pos, p.dir, kInf);
     }
     return active_.size();
 }
@@ -211,20 +202,11 @@ void PhotonGatherer::shade(const Hits &hits, double surface_radius, double volum
 }
 
 size_t PhotonGatherer::next_rays(const RayBuffers &out) {
-    size_t n = 0;
-    for (int32_t i : active_)
-        if (paths_[i].alive) active_[n++] = i;
-    active_.resize(n);
-    for (size_t k = 0; k < n; ++k) {
-        const GatherPath &p = paths_[active_[k]];
-        out.put(k, p.pos, p.dir, kInf);
-    }
-    return n;
+    return write_alive_rays(active_, paths_, out, threads_);
 }
 
 void PhotonGatherer::end_iteration() {
-    for (const GatherPath &p : paths_) film_.add(p.pixel, p.radiance);
-    film_.samples_per_pixel += spp_per_iteration_;
+    add_paths_to_film(film_, paths_, spp_per_iteration_);
     active_.clear();
 }
 

@@ -34,6 +34,7 @@
 
 #include <memory>
 
+#include "camera_path.h"  // camera samples and wave bookkeeping shared with pt and ppb
 #include "lightpath.h"
 #include "photon_map.h"
 

@@ -4,13 +4,10 @@
 
 namespace pgi {
 
-// Null crossings allowed per camera path before we call it trapped (as pt).
-constexpr int kMaxNullCrossingsPpb = 256;
-
 PhotonBeams::PhotonBeams(std::shared_ptr<const Scene> scene, int max_depth, int rr_depth, uint64_t seed,
                          int spp_per_iteration, int threads, size_t max_beams, double radius, double alpha,
                          int gather_diffuse_bounces)
-    : scene_(std::move(scene)), max_depth_(max_depth), rr_depth_(rr_depth), seed_(seed),
+    : scene_(std::move(scene)), steps_(*scene_, max_depth, rr_depth), max_depth_(max_depth), seed_(seed),
       spp_per_iteration_(std::max(1, spp_per_iteration)), threads_(std::max(1, threads)),
       gather_diffuse_bounces_(gather_diffuse_bounces),
       film_(scene_->camera.width, scene_->camera.height), bvh_(max_beams), schedule_(radius, alpha, 1) {
@@ -69,21 +66,12 @@ size_t PhotonBeams::begin_wave(int64_t iteration, const RayBuffers &out) {
     active_.resize(paths_.size());
 #pragma omp parallel for schedule(static) num_threads(threads_)
     for (int64_t i = 0; i < int64_t(paths_.size()); ++i) {
-        BeamGatherPath &p = paths_[i];
         int64_t pixel = i % npix;
         int64_t sample = iteration * spp_per_iteration_ + i / npix;
-        p = BeamGatherPath();
         // A stream key distinct from the light paths' (which use (seed, iteration, path)).
-        p.rng = Sampler(stream_key(seed_ ^ 0x5bd1e995b5ull, uint64_t(sample), uint64_t(pixel)));
-        p.pixel = pixel;
-        double fx = double(pixel % cam.width) + p.rng.next();
-        double fy = double(pixel / cam.width) + p.rng.next();
-        p.pos = cam.origin;
-        p.dir = cam.direction(fx, fy);
-        p.medium = cam.medium;
-        p.alive = true;
+        Sampler rng(stream_key(seed_ ^ 0x5bd1e995b5ull, uint64_t(sample), uint64_t(pixel)));
+        start_camera_path(paths_[i], cam, pixel, rng, out, size_t(i));
         active_[i] = int32_t(i);
-        out.put(i, p.pos, p.dir, kInf);
     }
     return active_.size();
 }
@@ -126,7 +114,8 @@ size_t PhotonBeams::shade(const Hits &hits) {
     shadow_.rays.resize(hits.count);
 #pragma omp parallel for schedule(dynamic, 64) num_threads(threads_) reduction(+ : lookups, pairs)
     for (int64_t k = 0; k < int64_t(hits.count); ++k) {
-        BeamGatherPath &p = paths_[active_[k]];
+        const int64_t index = active_[k];
+        BeamGatherPath &p = paths_[index];
         shadow_.rays[k].live = false;
         int tri = hits.prim[k];
         double t_hit = tri >= 0 ? double(hits.tfar[k]) : kInf;
@@ -140,7 +129,7 @@ size_t PhotonBeams::shade(const Hits &hits) {
                 lookups += local.density_lookups;
                 p.throughput *= ff.weight;
                 if (ff.scattered) {
-                    scatter_in_medium(p, k, p.pos + p.dir * ff.t);
+                    steps_.scatter_in_medium(p, shadow_.rays[k], index, p.pos + p.dir * ff.t);
                     continue;
                 }
             } else if (m.type == MediumType::Homogeneous) {
@@ -168,16 +157,9 @@ size_t PhotonBeams::shade(const Hits &hits) {
         const Triangle &T = scene.triangles[tri];
         Vec3 x = T.point(hits.u[k], hits.v[k]);
 
-        RGB Le = scene.emitted(tri, p.dir);
-        if (!is_black(Le)) {
-            double w = 1;
-            if (!p.prev_delta) w = power_heuristic(p.prev_pdf, scene.area_light_pdf(tri, p.prev_pos, x));
-            p.radiance += p.throughput * Le * w;
-        }
+        steps_.add_emission(p, tri, x);
         if (scene.materials[T.material].type == MaterialType::Null) {
-            p.medium = T.medium_after(p.medium, p.dir);
-            p.pos = scene.offset(x, tri, p.dir);
-            p.alive = ++p.null_crossings < kMaxNullCrossingsPpb;
+            steps_.cross_null(p, tri, x);
             continue;
         }
         scatter_on_surface(p, k, tri, x);
@@ -187,45 +169,6 @@ size_t PhotonBeams::shade(const Hits &hits) {
     size_t queued = 0;
     for (size_t k = 0; k < hits.count; ++k) queued += shadow_.rays[k].live;
     return queued;
-}
-
-void PhotonBeams::queue_shadow(BeamGatherPath &p, size_t slot, const LightSample &ls, const RGB &f,
-                               double pdf_dir, const Vec3 &origin, int medium) {
-    if (!ls.valid || is_black(f)) return;
-    double w = ls.delta ? 1.0 : power_heuristic(ls.pdf, pdf_dir);
-    ShadowRay &r = shadow_.rays[slot];
-    r.dir = ls.wi;
-    r.to_infinity = !std::isfinite(ls.dist);
-    r.target = r.to_infinity ? Vec3() : ls.point;
-    r.target_eps = r.to_infinity ? 0 : 2 * scene_->offset_length(ls.point);
-    r.restart_at(origin);
-    r.medium = medium;
-    r.contribution = p.throughput * f * ls.value * w;
-    r.rng = p.rng.split(uint64_t(p.depth));
-    r.live = !is_black(r.contribution);
-    r.receiver = int64_t(&p - paths_.data());
-}
-
-void PhotonBeams::scatter_in_medium(BeamGatherPath &p, size_t slot, const Vec3 &x) {
-    const Medium &m = scene_->media[p.medium];
-    if (++p.depth >= max_depth_ && max_depth_ >= 0) {
-        p.alive = false;
-        return;
-    }
-    Vec3 wo = -p.dir;
-    LightSample ls = scene_->sample_light(x, p.rng);
-    if (ls.valid) {
-        double f = phase_eval(m.phase, wo, ls.wi);
-        queue_shadow(p, slot, ls, RGB(f), f, x, p.medium);
-    }
-    double pdf;
-    double u1 = p.rng.next(), u2 = p.rng.next();
-    p.dir = phase_sample(m.phase, wo, u1, u2, pdf);  // exact sampling: weight 1
-    p.prev_pos = x;
-    p.prev_pdf = pdf;
-    p.prev_delta = false;
-    p.pos = x;
-    p.alive = russian_roulette(p);
 }
 
 // Radiance leaving diffuse triangle `tri` at x towards -p.dir from the photons
@@ -249,59 +192,31 @@ RGB PhotonBeams::gather_photons(const BeamGatherPath &p, int tri, const Vec3 &x)
 void PhotonBeams::scatter_on_surface(BeamGatherPath &p, size_t slot, int tri, const Vec3 &x) {
     const Triangle &T = scene_->triangles[tri];
     const Material &mat = scene_->materials[T.material];
-    if (++p.depth >= max_depth_ && max_depth_ >= 0) {
-        p.alive = false;
-        return;
-    }
-    Vec3 wo = -p.dir;
+    if (!steps_.count_event(p)) return;
+    ShadowRay &shadow = shadow_.rays[slot];
+    const int64_t index = int64_t(&p - paths_.data());
     if (surface_photons_ && !mat.is_delta()) {
         // The path ends here: direct light by NEE (full weight), the rest by photons.
         LightSample ls = scene_->sample_light(x, p.rng);
         if (ls.valid) {
-            RGB f = bsdf_eval(mat, T.n, wo, ls.wi);
+            Vec3 wo = -p.dir;
             LightSample full = ls;
             full.pdf = 0;
             full.delta = true;  // weight 1: no BSDF-sampled emission competes with it
-            queue_shadow(p, slot, full, f, 0, scene_->offset(x, tri, ls.wi), T.medium_after(p.medium, ls.wi));
+            steps_.next_event(p, shadow, index, full, bsdf_eval(mat, T.n, wo, ls.wi), 0,
+                              scene_->offset(x, tri, ls.wi), T.medium_after(p.medium, ls.wi));
         }
         p.radiance += p.throughput * gather_photons(p, tri, x);
         p.alive = false;
         return;
     }
     if (!mat.is_delta()) {
-        // Next-event estimation, power heuristic against BSDF sampling (as pt). Past
-        // the last gathering bounce the path scatters in media itself.
+        // Next-event estimation as pt. Past the last gathering bounce the path
+        // scatters in media itself.
         p.gathering = ++p.diffuse_bounces <= gather_diffuse_bounces_;
-        LightSample ls = scene_->sample_light(x, p.rng);
-        if (ls.valid) {
-            RGB f = bsdf_eval(mat, T.n, wo, ls.wi);
-            double pdf = bsdf_pdf(mat, T.n, wo, ls.wi);
-            queue_shadow(p, slot, ls, f, pdf, scene_->offset(x, tri, ls.wi), T.medium_after(p.medium, ls.wi));
-        }
+        steps_.next_event_on_surface(p, shadow, index, tri, x);
     }
-    double u1 = p.rng.next(), u2 = p.rng.next(), u3 = p.rng.next();
-    BsdfSample bs = bsdf_sample(mat, T.n, wo, u1, u2, u3);
-    if (!bs.valid) {
-        p.alive = false;
-        return;
-    }
-    p.throughput *= bs.weight;
-    p.prev_pos = x;
-    p.prev_pdf = bs.pdf;
-    p.prev_delta = bs.delta;
-    p.eta2 *= bs.eta * bs.eta;
-    p.dir = bs.wi;
-    p.medium = T.medium_after(p.medium, bs.wi);
-    p.pos = scene_->offset(x, tri, bs.wi);
-    p.alive = russian_roulette(p);
-}
-
-bool PhotonBeams::russian_roulette(BeamGatherPath &p) {
-    if (p.depth <= rr_depth_) return true;
-    double q = std::min(max_component(p.throughput) * p.eta2, 0.95);
-    if (!(p.rng.next() < q)) return false;
-    p.throughput = p.throughput / q;
-    return true;
+    steps_.continue_by_bsdf(p, tri, x);
 }
 
 void PhotonBeams::resolve_shadows(const Hits &hits) {
@@ -310,21 +225,10 @@ void PhotonBeams::resolve_shadows(const Hits &hits) {
     });
 }
 
-size_t PhotonBeams::next_rays(const RayBuffers &out) {
-    size_t n = 0;
-    for (int32_t i : active_)
-        if (paths_[i].alive) active_[n++] = i;
-    active_.resize(n);
-    for (size_t k = 0; k < n; ++k) {
-        const BeamGatherPath &p = paths_[active_[k]];
-        out.put(k, p.pos, p.dir, kInf);
-    }
-    return n;
-}
+size_t PhotonBeams::next_rays(const RayBuffers &out) { return write_alive_rays(active_, paths_, out, threads_); }
 
 void PhotonBeams::end_wave() {
-    for (const BeamGatherPath &p : paths_) film_.add(p.pixel, p.radiance);
-    film_.samples_per_pixel += spp_per_iteration_;
+    add_paths_to_film(film_, paths_, spp_per_iteration_);
     active_.clear();
     stats_.density_lookups += medium_stats_.density_lookups;
     medium_stats_ = MediumStats();

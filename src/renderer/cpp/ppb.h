@@ -46,26 +46,15 @@
 #include "lightpath.h"
 #include "photon_map.h"
 #include "radius_schedule.h"
-#include "wavefront.h"
+#include "camera_path.h"
 
 namespace pgi {
 
-struct BeamGatherPath {
-    Vec3 pos, dir;
-    RGB throughput{1.0};
-    RGB radiance{0.0};
-    Vec3 prev_pos;        // last diffuse vertex (for the light pdf in MIS)
-    double prev_pdf = 0;
-    double eta2 = 1;
-    int64_t pixel = 0;
-    int depth = 0;        // real surface scattering events so far
-    int medium = -1;
-    int null_crossings = 0;
-    bool prev_delta = true;
+// A camera path that gathers beams along its segments in media until its
+// (gather_diffuse_bounces + 1)-th diffuse bounce, and is path traced after it.
+struct BeamGatherPath : CameraPath {
     int diffuse_bounces = 0;
     bool gathering = true;  // media are still estimated by beams (diffuse_bounces <= limit)
-    bool alive = false;
-    Sampler rng;
 };
 
 // Counts of one run (all iterations).
@@ -110,14 +99,11 @@ public:
 private:
     RGB gather(BeamGatherPath &p, double t_end, MediumStats &local, uint64_t &pairs) const;
     void scatter_on_surface(BeamGatherPath &p, size_t slot, int tri, const Vec3 &x);
-    void scatter_in_medium(BeamGatherPath &p, size_t slot, const Vec3 &x);
     RGB gather_photons(const BeamGatherPath &p, int tri, const Vec3 &x) const;
-    void queue_shadow(BeamGatherPath &p, size_t slot, const LightSample &ls, const RGB &f, double pdf_dir,
-                      const Vec3 &origin, int medium);
-    bool russian_roulette(BeamGatherPath &p);
 
     std::shared_ptr<const Scene> scene_;
-    int max_depth_, rr_depth_;
+    CameraPathSteps steps_;
+    int max_depth_;
     uint64_t seed_;
     int spp_per_iteration_, threads_;
     int gather_diffuse_bounces_;

@@ -13,25 +13,9 @@
 
 #include <memory>
 
-#include "wavefront.h"
+#include "camera_path.h"
 
 namespace pgi {
-
-struct CameraPath {
-    Vec3 pos, dir;
-    RGB throughput{1.0};
-    RGB radiance{0.0};   // everything this path has gathered so far
-    Vec3 prev_pos;       // last real scattering vertex (for the light pdf in MIS)
-    double prev_pdf = 0; // solid-angle pdf of the direction sampled there
-    double eta2 = 1;     // product of squared IOR ratios crossed (for Russian roulette)
-    int64_t pixel = 0;
-    int depth = 0;       // real scattering events so far
-    int medium = -1;
-    int null_crossings = 0;
-    bool prev_delta = true;
-    bool alive = false;
-    Sampler rng;
-};
 
 class PathTracer {
 public:
@@ -59,14 +43,9 @@ public:
     int threads() const { return threads_; }
 
 private:
-    void scatter_in_medium(CameraPath &p, size_t slot, const Vec3 &x);
-    void scatter_on_surface(CameraPath &p, size_t slot, int tri, const Vec3 &x);
-    void queue_shadow(CameraPath &p, size_t slot, const LightSample &ls, const RGB &f, double pdf_dir,
-                      const Vec3 &origin, int medium);
-    bool russian_roulette(CameraPath &p);
-
     std::shared_ptr<const Scene> scene_;
-    int max_depth_, rr_depth_;
+    CameraPathSteps steps_;
+    int max_depth_;
     uint64_t seed_;
     int spp_per_wave_, threads_;
     std::vector<CameraPath> paths_;

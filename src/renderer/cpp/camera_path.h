@@ -1,0 +1,179 @@
+// Camera paths: the state and the steps shared by every method that traces
+// from the camera (pt, and the gathering paths of ppb; pm reuses the wave
+// bookkeeping). Each step is one piece of volumetric path tracing with NEE
+// and MIS (Veach 1997, ch. 9), with Mitsuba volpath's conventions: depth
+// counts real scattering events, null crossings are free, Russian roulette
+// after rr_depth events on max(throughput) * eta^2.
+#pragma once
+
+#include <climits>
+#include <vector>
+
+#include "wavefront.h"
+
+namespace pgi {
+
+// A path crossing more null boundaries than this in a row is trapped (e.g. in
+// coincident faces) and ends.
+constexpr int kMaxNullCrossings = 256;
+
+struct CameraPath {
+    Vec3 pos, dir;
+    RGB throughput{1.0};
+    RGB radiance{0.0};   // everything this path has gathered so far
+    Vec3 prev_pos;       // last real scattering vertex (for the light pdf in MIS)
+    double prev_pdf = 0; // solid-angle pdf of the direction sampled there
+    double eta2 = 1;     // product of squared IOR ratios crossed (for Russian roulette)
+    int64_t pixel = 0;
+    int depth = 0;       // real scattering events so far
+    int medium = -1;
+    int null_crossings = 0;
+    bool prev_delta = true;
+    bool alive = false;
+    Sampler rng;
+};
+
+// Box-filtered camera sample through `pixel`, writing its first ray to slot k.
+template <typename Path>
+void start_camera_path(Path &p, const Camera &cam, int64_t pixel, Sampler rng, const RayBuffers &out,
+                       size_t k) {
+    p = Path();
+    p.rng = rng;
+    p.pixel = pixel;
+    double fx = double(pixel % cam.width) + p.rng.next();
+    double fy = double(pixel / cam.width) + p.rng.next();
+    p.pos = cam.origin;
+    p.dir = cam.direction(fx, fy);
+    p.medium = cam.medium;
+    p.alive = true;
+    out.put(k, p.pos, p.dir, kInf);
+}
+
+class CameraPathSteps {
+public:
+    CameraPathSteps(const Scene &scene, int max_depth, int rr_depth)
+        : scene_(scene), max_depth_(max_depth < 0 ? INT_MAX : max_depth), rr_depth_(rr_depth) {}
+
+    // Emission found by the sampled direction, weighted against light sampling.
+    void add_emission(CameraPath &p, int tri, const Vec3 &x) const {
+        RGB Le = scene_.emitted(tri, p.dir);
+        if (is_black(Le)) return;
+        double w = p.prev_delta ? 1.0 : power_heuristic(p.prev_pdf, scene_.area_light_pdf(tri, p.prev_pos, x));
+        p.radiance += p.throughput * Le * w;
+    }
+    // Index-matched boundary: change medium, keep direction, depth and MIS state.
+    void cross_null(CameraPath &p, int tri, const Vec3 &x) const {
+        p.medium = scene_.triangles[tri].medium_after(p.medium, p.dir);
+        p.pos = scene_.offset(x, tri, p.dir);
+        p.alive = ++p.null_crossings < kMaxNullCrossings;
+    }
+    // Counts a real scattering event; false (and the path ends) past max_depth.
+    bool count_event(CameraPath &p) const {
+        if (++p.depth >= max_depth_) p.alive = false;
+        return p.alive;
+    }
+    // A shadow ray towards a light sample, weighted by the power heuristic
+    // against the BSDF/phase pdf (1 for delta lights). `receiver` gets it.
+    void next_event(const CameraPath &p, ShadowRay &r, int64_t receiver, const LightSample &ls, const RGB &f,
+                    double pdf_dir, const Vec3 &origin, int medium) const {
+        r.live = false;
+        if (!ls.valid || is_black(f)) return;
+        double w = ls.delta ? 1.0 : power_heuristic(ls.pdf, pdf_dir);
+        r.dir = ls.wi;
+        r.to_infinity = !std::isfinite(ls.dist);
+        r.target = r.to_infinity ? Vec3() : ls.point;
+        r.target_eps = r.to_infinity ? 0 : 2 * scene_.offset_length(ls.point);
+        r.restart_at(origin);
+        r.medium = medium;
+        r.contribution = p.throughput * f * ls.value * w;
+        r.rng = p.rng.split(uint64_t(p.depth));
+        r.receiver = receiver;
+        r.live = !is_black(r.contribution);
+    }
+    // Real collision at x: NEE by the phase function, then a phase-sampled direction.
+    void scatter_in_medium(CameraPath &p, ShadowRay &r, int64_t receiver, const Vec3 &x) const {
+        r.live = false;
+        if (!count_event(p)) return;
+        const Medium &m = scene_.media[p.medium];
+        Vec3 wo = -p.dir;
+        LightSample ls = scene_.sample_light(x, p.rng);
+        if (ls.valid) {
+            double f = phase_eval(m.phase, wo, ls.wi);
+            next_event(p, r, receiver, ls, RGB(f), f, x, p.medium);
+        }
+        double pdf, u1 = p.rng.next(), u2 = p.rng.next();
+        p.dir = phase_sample(m.phase, wo, u1, u2, pdf);  // exact sampling: weight 1
+        p.prev_pos = x;
+        p.prev_pdf = pdf;
+        p.prev_delta = false;
+        p.pos = x;
+        p.alive = russian_roulette(p);
+    }
+    // NEE at a non-delta surface vertex (the event at x already counted).
+    void next_event_on_surface(CameraPath &p, ShadowRay &r, int64_t receiver, int tri, const Vec3 &x) const {
+        const Triangle &T = scene_.triangles[tri];
+        const Material &mat = scene_.materials[T.material];
+        LightSample ls = scene_.sample_light(x, p.rng);
+        if (!ls.valid) return;
+        Vec3 wo = -p.dir;
+        next_event(p, r, receiver, ls, bsdf_eval(mat, T.n, wo, ls.wi), bsdf_pdf(mat, T.n, wo, ls.wi),
+                   scene_.offset(x, tri, ls.wi), T.medium_after(p.medium, ls.wi));
+    }
+    // Continues by BSDF sampling at surface vertex x (the event already counted).
+    void continue_by_bsdf(CameraPath &p, int tri, const Vec3 &x) const {
+        const Triangle &T = scene_.triangles[tri];
+        double u1 = p.rng.next(), u2 = p.rng.next(), u3 = p.rng.next();
+        BsdfSample bs = bsdf_sample(scene_.materials[T.material], T.n, -p.dir, u1, u2, u3);
+        if (!bs.valid) {
+            p.alive = false;
+            return;
+        }
+        p.throughput *= bs.weight;
+        p.prev_pos = x;
+        p.prev_pdf = bs.pdf;
+        p.prev_delta = bs.delta;
+        p.eta2 *= bs.eta * bs.eta;
+        p.dir = bs.wi;
+        p.medium = T.medium_after(p.medium, bs.wi);
+        p.pos = scene_.offset(x, tri, bs.wi);
+        p.alive = russian_roulette(p);
+    }
+    // Mitsuba's rule: after rr_depth real events, continue with probability
+    // min(max(throughput) * eta^2, 0.95) and divide by it.
+    bool russian_roulette(CameraPath &p) const {
+        if (p.depth <= rr_depth_) return true;
+        double q = std::min(max_component(p.throughput) * p.eta2, 0.95);
+        if (!(p.rng.next() < q)) return false;
+        p.throughput = p.throughput / q;
+        return true;
+    }
+
+private:
+    const Scene &scene_;
+    int max_depth_, rr_depth_;
+};
+
+// Keeps the paths still alive (in order) and writes their extension rays.
+template <typename Path>
+size_t write_alive_rays(std::vector<int32_t> &active, const std::vector<Path> &paths, const RayBuffers &out,
+                        int threads) {
+    size_t n = 0;
+    for (int32_t i : active)
+        if (paths[i].alive) active[n++] = i;
+    active.resize(n);
+#pragma omp parallel for schedule(static) num_threads(threads)
+    for (int64_t k = 0; k < int64_t(n); ++k) {
+        const Path &p = paths[active[k]];
+        out.put(k, p.pos, p.dir, kInf);
+    }
+    return n;
+}
+
+// Adds each path's radiance to its pixel, in path order (deterministic).
+template <typename Path>
+void add_paths_to_film(Film &film, const std::vector<Path> &paths, int spp) {
+    for (const Path &p : paths) film.add(p.pixel, p.radiance);
+    film.samples_per_pixel += spp;
+}
+
+}  // namespace pgi
