@@ -16,6 +16,7 @@ import numpy as np
 from .. import _core
 from ..engine import build_native_scene
 from ..errors import PgiError
+from ..passes import resolve_shadow_rays
 from ..scene.model import Scene
 from ..tracer import EmbreeTracer, RayBatch
 from .lightpath import LightPaths
@@ -69,15 +70,11 @@ class LightTracing:
     def run_iteration(self, iteration: int) -> None:
         """Trace light paths; connect their vertices to the camera; splat in vertex order."""
         self.light_paths.trace(iteration)
-        kernel, rays = self.kernel, self.connections
+        kernel = self.kernel
         queued = kernel.connect(self.light_paths.kernel)
         self._ensure_capacity(queued)
-        rays = self.connections
-        while queued:
-            queued = kernel.shadow_rays(*rays.buffers)
-            if queued:
-                tfar, prim, _, _ = self.tracer.intersect(rays, queued)
-                kernel.resolve_shadows(tfar, prim)
+        if queued:
+            resolve_shadow_rays(kernel, self.tracer, self.connections)
         kernel.end_iteration()
         self.iterations += 1
 

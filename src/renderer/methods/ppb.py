@@ -31,7 +31,8 @@ import numpy as np
 from .. import _core
 from ..engine import build_native_scene
 from ..errors import PgiError
-from ..scene.model import PointLight, Scene, SpotLight
+from ..passes import trace_camera_wave
+from ..scene.model import Scene
 from ..tracer import EmbreeTracer, RayBatch
 from . import lightpath
 from .lightpath import LightPaths
@@ -69,73 +70,6 @@ def scene_radius(triangles: np.ndarray) -> float:
     """Half the diagonal of the triangles' bounding box (the core's scene_radius)."""
     pts = triangles.reshape(-1, 3)
     return float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)) / 2)
-
-
-def _reaches_camera_unbounded(
-    native, tracer: EmbreeTracer, scene: Scene, points: np.ndarray
-) -> np.ndarray:
-    """True where the segment point -> camera crosses no shape that names a medium.
-
-    Such a point lies in the camera's medium (media change only at shapes naming one).
-    """
-    n = len(points)
-    ok = np.ones(n, bool)
-    if n == 0:
-        return ok
-    _, _, named = lightpath._triangle_media(scene, lightpath._medium_names(scene))
-    target = np.asarray(scene.camera.origin, np.float64)
-    extent = float(np.ptp(native.triangles.reshape(-1, 3), axis=0).max())
-    origin = points.astype(np.float64).copy()
-    batch = RayBatch(n)
-    pending = np.arange(n)
-    for _ in range(64):
-        if len(pending) == 0:
-            break
-        to = target - origin[pending]
-        dist = np.linalg.norm(to, axis=1)
-        d = to / np.maximum(dist, 1e-300)[:, None]
-        m = len(pending)
-        batch.origins[:m], batch.directions[:m], batch.tmax[:m] = origin[pending], d, dist
-        tfar, prim, _, _ = tracer.intersect(batch, m)
-        prim = prim[:m].astype(np.int64)
-        hit = prim >= 0
-        blocked = np.zeros(m, bool)
-        blocked[hit] = named[prim[hit]]
-        ok[pending[blocked]] = False
-        go_on = hit & ~blocked
-        origin[pending[go_on]] += d[go_on] * (tfar[:m][go_on, None] + 1e-5 * extent)
-        pending = pending[go_on]
-    return ok
-
-
-def emission_media(native, tracer: EmbreeTracer, scene: Scene, seed: int):
-    """The shared probes (lightpath.emission_media), corrected for lights in the camera's medium.
-
-    The shared probes call a light's surroundings vacuum when random rays from it meet
-    no shape naming a medium; in a room filled with the camera's fog (scenes volcaustic,
-    crepuscular) the lights then emit into vacuum. A light whose segment to the camera
-    crosses no such shape shares the camera's medium.
-    """
-    per_triangle, per_light = lightpath.emission_media(native, tracer, scene, seed)
-    if scene.camera.medium is None:
-        return per_triangle, per_light
-    camera_medium = lightpath._medium_names(scene)[scene.camera.medium]
-    emitting = lightpath._emitting_triangles(scene)
-    if len(emitting):
-        t = native.triangles[emitting]
-        normal = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
-        normal /= np.linalg.norm(normal, axis=1, keepdims=True)
-        extent = float(np.ptp(native.triangles.reshape(-1, 3), axis=0).max())
-        start = t.mean(axis=1) + normal * 1e-4 * extent
-        same = _reaches_camera_unbounded(native, tracer, scene, start)
-        per_triangle[emitting[same]] = camera_medium
-    lights_area = len(per_light) - len(scene.lights)
-    for i, light in enumerate(scene.lights):
-        if isinstance(light, (PointLight, SpotLight)):
-            pos = np.asarray(light.position, np.float64)[None]
-            if _reaches_camera_unbounded(native, tracer, scene, pos)[0]:
-                per_light[lights_area + i] = camera_medium
-    return per_triangle, per_light
 
 
 class ProgressivePhotonBeams:
@@ -181,7 +115,7 @@ class ProgressivePhotonBeams:
             max_records=2 * max_beams,
             vertices=surface_radius > 0,
         )
-        per_triangle, per_light = emission_media(self.native, self.tracer, scene, seed)
+        per_triangle, per_light = lightpath.emission_media(self.native, self.tracer, scene, seed)
         self.light_paths.kernel.set_emission_media(per_triangle.tolist(), per_light.tolist())
         self.kernel = _core.PhotonBeams(
             self.native.core,
@@ -205,19 +139,9 @@ class ProgressivePhotonBeams:
     def run_iteration(self, iteration: int) -> None:
         # Passes 1-2: light paths, then their beams in a BVH with this iteration's radius.
         self.light_paths.trace(iteration)
-        kernel, paths, shadows = self.kernel, self.paths, self.shadows
-        kernel.build_beams(self.light_paths.kernel, iteration, self.piece_length)
+        self.kernel.build_beams(self.light_paths.kernel, iteration, self.piece_length)
         # Pass 3: camera paths gather beams along media and path-trace surfaces.
-        active = kernel.begin_wave(iteration, *paths.buffers)
-        while active:
-            queued = kernel.shade(*self.tracer.intersect(paths, active))
-            while queued:
-                queued = kernel.shadow_rays(*shadows.buffers)
-                if queued:
-                    tfar, prim, _, _ = self.tracer.intersect(shadows, queued)
-                    kernel.resolve_shadows(tfar, prim)
-            active = kernel.next_rays(*paths.buffers)
-        kernel.end_wave()
+        trace_camera_wave(self.kernel, self.tracer, self.paths, self.shadows, iteration)
         self.iterations += 1
 
     def image(self) -> np.ndarray:

@@ -16,6 +16,7 @@ import numpy as np
 from .. import _core
 from ..engine import build_native_scene
 from ..errors import PgiError
+from ..passes import trace_camera_wave
 from ..scene.model import Scene
 from ..tracer import EmbreeTracer, RayBatch
 
@@ -63,17 +64,7 @@ class PathTracing:
 
     def run_iteration(self, iteration: int) -> None:
         """One wave: spp_per_wave camera paths per pixel, traced bounce by bounce."""
-        kernel, paths, shadows = self.kernel, self.paths, self.shadows
-        active = kernel.begin_wave(iteration, *paths.buffers)
-        while active:
-            queued = kernel.shade(*self.tracer.intersect(paths, active))
-            while queued:
-                queued = kernel.shadow_rays(*shadows.buffers)
-                if queued:
-                    tfar, prim, _, _ = self.tracer.intersect(shadows, queued)
-                    kernel.resolve_shadows(tfar, prim)
-            active = kernel.next_rays(*paths.buffers)
-        kernel.end_wave()
+        trace_camera_wave(self.kernel, self.tracer, self.paths, self.shadows, iteration)
         self.iterations += 1
 
     def image(self) -> np.ndarray:
