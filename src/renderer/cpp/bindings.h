@@ -70,6 +70,30 @@ inline NumpyOut<double> film_image(const Film &f) {
 }
 
 
+// Probes of a phase function for tests: what the renderer samples from uniform
+// numbers u (n, 2), and the density it evaluates for directions wi (n, 3).
+inline auto probe_phase_sample(const Phase &ph, const V3 &wo, Array<double> u) {
+    size_t n = u.shape(0);
+    std::vector<double> wi(3 * n), pdf(n);
+    Vec3 w = normalize(vec(wo));
+    for (size_t i = 0; i < n; ++i) {
+        double p;
+        Vec3 d = phase_sample(ph, w, u.data()[2 * i], u.data()[2 * i + 1], p);
+        for (int a = 0; a < 3; ++a) wi[3 * i + a] = d[a];
+        pdf[i] = p;
+    }
+    return std::make_tuple(to_numpy(std::move(wi), {n, 3}), to_numpy(std::move(pdf), {n}));
+}
+
+inline auto probe_phase_eval(const Phase &ph, const V3 &wo, Array<double> wi) {
+    size_t n = wi.shape(0);
+    std::vector<double> out(n);
+    Vec3 w = normalize(vec(wo));
+    for (size_t i = 0; i < n; ++i)
+        out[i] = phase_eval(ph, w, Vec3(wi.data()[3 * i], wi.data()[3 * i + 1], wi.data()[3 * i + 2]));
+    return to_numpy(std::move(out), {n});
+}
+
 // One per method file; module.cpp calls each.
 void bind_pt(nb::module_ &m);
 void bind_lt(nb::module_ &m);

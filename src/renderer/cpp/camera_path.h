@@ -49,6 +49,24 @@ void start_camera_path(Path &p, const Camera &cam, int64_t pixel, Sampler rng, c
     out.put(k, p.pos, p.dir, kInf);
 }
 
+// Starts a wave of spp camera paths per pixel: path i samples pixel i % npix,
+// its random stream keyed by (stream_seed, sample index, pixel). Fills `active`.
+template <typename Path>
+size_t start_camera_wave(std::vector<Path> &paths, std::vector<int32_t> &active, const Camera &cam,
+                         int64_t iteration, int spp, uint64_t stream_seed, const RayBuffers &out, int threads) {
+    const int64_t npix = int64_t(cam.width) * cam.height;
+    active.resize(paths.size());
+#pragma omp parallel for schedule(static) num_threads(threads)
+    for (int64_t i = 0; i < int64_t(paths.size()); ++i) {
+        int64_t pixel = i % npix;
+        int64_t sample = iteration * spp + i / npix;
+        Sampler rng(stream_key(stream_seed, uint64_t(sample), uint64_t(pixel)));
+        start_camera_path(paths[i], cam, pixel, rng, out, size_t(i));
+        active[i] = int32_t(i);
+    }
+    return active.size();
+}
+
 class CameraPathSteps {
 public:
     CameraPathSteps(const Scene &scene, int max_depth, int rr_depth)

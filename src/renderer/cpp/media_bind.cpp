@@ -61,26 +61,12 @@ void bind_media(nb::module_ &m) {
     m.def("sample_phase_table",
           [](Array<double> values, V3 wo, Array<double> u) {
               Phase ph{PhaseType::Tabulated, 0.0, table_of(values)};
-              size_t n = u.shape(0);
-              std::vector<double> wi(3 * n), pdf(n);
-              Vec3 w = normalize(vec(wo));
-              for (size_t i = 0; i < n; ++i) {
-                  double p;
-                  Vec3 dir = phase_sample(ph, w, u.data()[2 * i], u.data()[2 * i + 1], p);
-                  for (int a = 0; a < 3; ++a) wi[3 * i + a] = dir[a];
-                  pdf[i] = p;
-              }
-              return std::make_tuple(to_numpy(std::move(wi), {n, 3}), to_numpy(std::move(pdf), {n}));
+              return probe_phase_sample(ph, wo, u);
           }, "values"_a, "wo"_a, "u"_a);
     m.def("eval_phase_table",
           [](Array<double> values, V3 wo, Array<double> wi) {
               Phase ph{PhaseType::Tabulated, 0.0, table_of(values)};
-              size_t n = wi.shape(0);
-              std::vector<double> out(n);
-              Vec3 w = normalize(vec(wo));
-              for (size_t i = 0; i < n; ++i)
-                  out[i] = phase_eval(ph, w, Vec3(wi.data()[3 * i], wi.data()[3 * i + 1], wi.data()[3 * i + 2]));
-              return to_numpy(std::move(out), {n});
+              return probe_phase_eval(ph, wo, wi);
           }, "values"_a, "wo"_a, "wi"_a);
 }
 

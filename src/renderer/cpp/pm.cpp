@@ -82,20 +82,11 @@ void PhotonGatherer::build_maps(const LightPathTracer &paths) {
 
 size_t PhotonGatherer::begin_camera(int64_t iteration, const RayBuffers &out) {
     const Camera &cam = scene_->camera;
-    const int64_t npix = int64_t(cam.width) * cam.height;
     active_.clear();
     if (max_depth_ == 0) return 0;
     if (out.capacity < paths_.size()) throw std::invalid_argument("pm: ray buffers too small");
-    active_.resize(paths_.size());
-#pragma omp parallel for schedule(static) num_threads(threads_)
-    for (int64_t i = 0; i < int64_t(paths_.size()); ++i) {
-        int64_t pixel = i % npix;
-        int64_t sample = iteration * spp_per_iteration_ + i / npix;
-        Sampler rng(stream_key(seed_ ^ kGatherStreamTag, uint64_t(sample), uint64_t(pixel)));
-        start_camera_path(paths_[i], cam, pixel, rng, out, size_t(i));
-        active_[i] = int32_t(i);
-    }
-    return active_.size();
+    return start_camera_wave(paths_, active_, cam, iteration, spp_per_iteration_, seed_ ^ kGatherStreamTag, out,
+                             threads_);
 }
 
 // Beam radiance estimate along [0, t_hit] (Jarosz et al. 2008): every volume photon

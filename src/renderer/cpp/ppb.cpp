@@ -59,21 +59,12 @@ void PhotonBeams::build_beams(const LightPathTracer &light, int64_t iteration, d
 
 size_t PhotonBeams::begin_wave(int64_t iteration, const RayBuffers &out) {
     const Camera &cam = scene_->camera;
-    const int64_t npix = int64_t(cam.width) * cam.height;
     active_.clear();
     shadow_.clear();
     if (max_depth_ == 0) return 0;  // Mitsuba: max_depth 0 renders black
-    active_.resize(paths_.size());
-#pragma omp parallel for schedule(static) num_threads(threads_)
-    for (int64_t i = 0; i < int64_t(paths_.size()); ++i) {
-        int64_t pixel = i % npix;
-        int64_t sample = iteration * spp_per_iteration_ + i / npix;
-        // A stream key distinct from the light paths' (which use (seed, iteration, path)).
-        Sampler rng(stream_key(seed_ ^ 0x5bd1e995b5ull, uint64_t(sample), uint64_t(pixel)));
-        start_camera_path(paths_[i], cam, pixel, rng, out, size_t(i));
-        active_[i] = int32_t(i);
-    }
-    return active_.size();
+    // A stream key distinct from the light paths' (which use (seed, iteration, path)).
+    return start_camera_wave(paths_, active_, cam, iteration, spp_per_iteration_, seed_ ^ 0x5bd1e995b5ull, out,
+                             threads_);
 }
 
 // BB1D over the camera segment [0, t_end) of path p in its medium.

@@ -11,19 +11,10 @@ PathTracer::PathTracer(std::shared_ptr<const Scene> scene, int max_depth, int rr
 
 size_t PathTracer::begin_wave(int64_t iteration, const RayBuffers &out) {
     const Camera &cam = scene_->camera;
-    const int64_t npix = int64_t(cam.width) * cam.height;
     active_.clear();
     shadow_.clear();
     if (max_depth_ == 0) return 0;  // Mitsuba: max_depth 0 renders black
-    active_.resize(paths_.size());
-#pragma omp parallel for schedule(static) num_threads(threads_)
-    for (int64_t i = 0; i < int64_t(paths_.size()); ++i) {
-        int64_t pixel = i % npix;
-        int64_t sample = iteration * spp_per_wave_ + i / npix;
-        start_camera_path(paths_[i], cam, pixel, Sampler(stream_key(seed_, uint64_t(sample), uint64_t(pixel))),
-                          out, size_t(i));
-        active_[i] = int32_t(i);
-    }
+    start_camera_wave(paths_, active_, cam, iteration, spp_per_wave_, seed_, out, threads_);
     paths_traced_ += paths_.size();
     return active_.size();
 }
