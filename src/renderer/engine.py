@@ -15,7 +15,8 @@ _MATERIAL_TYPES = {"diffuse": 0, "mirror": 1, "dielectric": 2, "null": 3}
 _PHASE_TYPES = {"isotropic": 0, "hg": 1, "rayleigh": 2, "tabulated": 3}
 _ESTIMATORS = {"delta": 0, "ratio": 1, "residual": 2, "raymarch": 3}
 # Voxels per majorant cell: small enough to follow a plume's shape, large
-# enough that the DDA does not dominate.
+# enough that the DDA does not dominate. (bench/bench_media.py sweeps it: the
+# tighter the majorants, the closer delta tracking gets to ratio tracking.)
 MAJORANT_CELL = 4
 # Triangles with less area than this fraction of the scene's squared size are
 # dropped: they have no normal, and no light can hit them.
@@ -67,7 +68,7 @@ def march_step(medium: Medium, integrator_step: float) -> float:
     return 0.5 * float(voxel.min())
 
 
-def _add_medium(core: _core.Scene, m: Medium, scene: Scene) -> int:
+def _add_medium(core: _core.Scene, m: Medium, scene: Scene, majorant_cell: int) -> int:
     """Describe one medium to the core; returns its id."""
     phase, g = _PHASE_TYPES[m.phase.type], float(m.phase.g)
     if m.type == "homogeneous":
@@ -83,7 +84,7 @@ def _add_medium(core: _core.Scene, m: Medium, scene: Scene) -> int:
             tuple(m.albedo),
             phase,
             g,
-            MAJORANT_CELL,
+            majorant_cell,
         )
         estimator = scene.integrator.estimator
         step = march_step(m, scene.integrator.march_step)
@@ -93,15 +94,18 @@ def _add_medium(core: _core.Scene, m: Medium, scene: Scene) -> int:
     return medium_id
 
 
-def build_native_scene(scene: Scene) -> NativeScene:
-    """Flatten shapes into one triangle list and describe everything else to the core."""
+def build_native_scene(scene: Scene, majorant_cell: int = MAJORANT_CELL) -> NativeScene:
+    """Flatten shapes into one triangle list and describe everything else to the core.
+    ``majorant_cell``: voxels per majorant-grid cell along each axis (benchmarks vary it)."""
     core = _core.Scene()
     material_ids = {}
     for name, m in scene.materials.items():
         material_ids[name] = core.add_material(
             _MATERIAL_TYPES[m.type], tuple(map(float, m.reflectance)), float(m.ior)
         )
-    medium_ids = {name: _add_medium(core, m, scene) for name, m in scene.media.items()}
+    medium_ids = {
+        name: _add_medium(core, m, scene, majorant_cell) for name, m in scene.media.items()
+    }
 
     def medium(name: str | None) -> int:
         return -1 if name is None else medium_ids[name]
