@@ -175,16 +175,9 @@ private:
 template <typename Path>
 size_t write_alive_rays(std::vector<int32_t> &active, const std::vector<Path> &paths, const RayBuffers &out,
                         int threads) {
-    size_t n = 0;
-    for (int32_t i : active)
-        if (paths[i].alive) active[n++] = i;
-    active.resize(n);
-#pragma omp parallel for schedule(static) num_threads(threads)
-    for (int64_t k = 0; k < int64_t(n); ++k) {
-        const Path &p = paths[active[k]];
-        out.put(k, p.pos, p.dir, kInf);
-    }
-    return n;
+    return compact_in_order(
+        active, threads, [&](int32_t i) { return paths[i].alive; },
+        [&](int64_t k, int32_t i) { out.put(size_t(k), paths[i].pos, paths[i].dir, kInf); });
 }
 
 // Adds each path's radiance to its pixel, in path order (deterministic).

@@ -26,7 +26,10 @@ struct Vec3 {
     Vec3 operator*(const Vec3 &b) const { return {x * b.x, y * b.y, z * b.z}; }
     Vec3 operator/(const Vec3 &b) const { return {x / b.x, y / b.y, z / b.z}; }
     Vec3 operator*(double s) const { return {x * s, y * s, z * s}; }
-    Vec3 operator/(double s) const { return {x / s, y / s, z / s}; }
+    Vec3 operator/(double s) const {  // one division, three multiplications
+        double r = 1.0 / s;
+        return {x * r, y * r, z * r};
+    }
     Vec3 operator-() const { return {-x, -y, -z}; }
     Vec3 &operator+=(const Vec3 &b) { x += b.x; y += b.y; z += b.z; return *this; }
     Vec3 &operator*=(const Vec3 &b) { x *= b.x; y *= b.y; z *= b.z; return *this; }

@@ -1,8 +1,6 @@
 // lt: light tracing (see lt.h).
 #include "lt.h"
 
-#include <stdexcept>
-
 namespace pgi {
 
 constexpr uint64_t kConnectionStreamTag = 0x436f6e6e65637473ull;
@@ -18,12 +16,13 @@ size_t LightTracer::connect(const LightPathTracer &paths) {
     const double inv_paths = 1.0 / double(paths.paths_per_iteration());
     const uint64_t iteration = uint64_t(paths.iteration());
     splats_.assign(verts.size(), Splat());
-    shadow_.rays.assign(verts.size(), ShadowRay());
+    shadow_.open(verts.size());
     light_paths_ += uint64_t(paths.paths_per_iteration());
 #pragma omp parallel for schedule(static) num_threads(threads_)
     for (int64_t k = 0; k < int64_t(verts.size()); ++k) {
         const LightVertex &v = verts[k];
-        ShadowRay &r = shadow_.rays[k];
+        ShadowRay &r = shadow_[k];
+        r.live = false;
         CameraConnection c = connect_to_camera(cam, v.pos);
         if (!c.valid) continue;
         RGB f(0.0);
@@ -62,16 +61,11 @@ size_t LightTracer::connect(const LightPathTracer &paths) {
         r.rng = Sampler(stream_key(seed_ ^ kConnectionStreamTag, iteration, uint64_t(k)));
         r.live = true;
     }
-    size_t live = 0;
-    for (const ShadowRay &r : shadow_.rays) live += r.live;
-    return live;
+    return shadow_.live(threads_);
 }
 
 size_t LightTracer::shadow_rays(const RayBuffers &out) {
-    size_t live = 0;
-    for (const ShadowRay &r : shadow_.rays) live += r.live;
-    if (live > out.capacity) throw std::invalid_argument("lt: connection ray buffers too small");
-    return shadow_.compact_and_write(out);
+    return shadow_.compact_and_write(out, threads_);
 }
 
 void LightTracer::resolve_shadows(const Hits &hits) {

@@ -75,7 +75,6 @@ public:
     // Pass 2 (repeated): pending connection segments into `out`; returns their count.
     size_t shadow_rays(const RayBuffers &out);
     void resolve_shadows(const Hits &hits);
-    size_t pending() const { return shadow_.rays.size(); }
     // Pass 3: splats added to the film in vertex order.
     void end_iteration();
 

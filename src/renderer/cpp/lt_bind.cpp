@@ -131,7 +131,6 @@ void bind_lt(nb::module_ &m) {
                  nb::gil_scoped_release release;
                  lt.resolve_shadows(h);
              })
-        .def_prop_ro("pending", &LightTracer::pending)
         .def("end_iteration", &LightTracer::end_iteration, nb::call_guard<nb::gil_scoped_release>())
         .def("image", [](const LightTracer &lt) { return film_image(lt.film()); })
         .def_prop_ro("iterations", [](const LightTracer &lt) { return lt.film().samples_per_pixel; })

@@ -102,12 +102,12 @@ RGB PhotonBeams::gather(BeamGatherPath &p, double t_end, MediumStats &local, uin
 size_t PhotonBeams::shade(const Hits &hits) {
     const Scene &scene = *scene_;
     uint64_t lookups = 0, pairs = 0;
-    shadow_.rays.resize(hits.count);
+    shadow_.open(hits.count);
 #pragma omp parallel for schedule(dynamic, 64) num_threads(threads_) reduction(+ : lookups, pairs)
     for (int64_t k = 0; k < int64_t(hits.count); ++k) {
         const int64_t index = active_[k];
         BeamGatherPath &p = paths_[index];
-        shadow_.rays[k].live = false;
+        shadow_[k].live = false;
         int tri = hits.prim[k];
         double t_hit = tri >= 0 ? double(hits.tfar[k]) : kInf;
 
@@ -120,7 +120,7 @@ size_t PhotonBeams::shade(const Hits &hits) {
                 lookups += local.density_lookups;
                 p.throughput *= ff.weight;
                 if (ff.scattered) {
-                    steps_.scatter_in_medium(p, shadow_.rays[k], index, p.pos + p.dir * ff.t);
+                    steps_.scatter_in_medium(p, shadow_[k], index, p.pos + p.dir * ff.t);
                     continue;
                 }
             } else if (m.type == MediumType::Homogeneous) {
@@ -157,9 +157,7 @@ size_t PhotonBeams::shade(const Hits &hits) {
     }
     stats_.beam_pairs += pairs;
     stats_.density_lookups += lookups;
-    size_t queued = 0;
-    for (size_t k = 0; k < hits.count; ++k) queued += shadow_.rays[k].live;
-    return queued;
+    return shadow_.live(threads_);
 }
 
 // Radiance leaving diffuse triangle `tri` at x towards -p.dir from the photons
@@ -184,7 +182,7 @@ void PhotonBeams::scatter_on_surface(BeamGatherPath &p, size_t slot, int tri, co
     const Triangle &T = scene_->triangles[tri];
     const Material &mat = scene_->materials[T.material];
     if (!steps_.count_event(p)) return;
-    ShadowRay &shadow = shadow_.rays[slot];
+    ShadowRay &shadow = shadow_[slot];
     const int64_t index = int64_t(&p - paths_.data());
     if (surface_photons_ && !mat.is_delta()) {
         // The path ends here: direct light by NEE (full weight), the rest by photons.

@@ -87,7 +87,7 @@ public:
     // Pass 3: gather beams along each traced segment, then the surface (emission,
     // NEE, BSDF sampling). Returns the number of queued shadow rays.
     size_t shade(const Hits &hits);
-    size_t shadow_rays(const RayBuffers &out) { return shadow_.compact_and_write(out); }
+    size_t shadow_rays(const RayBuffers &out) { return shadow_.compact_and_write(out, threads_); }
     void resolve_shadows(const Hits &hits);
     size_t next_rays(const RayBuffers &out);
     void end_wave();

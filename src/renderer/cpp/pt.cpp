@@ -22,7 +22,7 @@ size_t PathTracer::begin_wave(int64_t iteration, const RayBuffers &out) {
 size_t PathTracer::shade(const Hits &hits) {
     const Scene &scene = *scene_;
     MediumStats counts;
-    shadow_.reset(hits.count);
+    shadow_.open(hits.count);
 #pragma omp parallel for schedule(dynamic, 256) num_threads(threads_) reduction(+ : counts)
     for (int64_t k = 0; k < int64_t(hits.count); ++k) {
         const int64_t index = active_[k];
@@ -58,7 +58,7 @@ size_t PathTracer::shade(const Hits &hits) {
         steps_.continue_by_bsdf(p, tri, x);
     }
     stats_ += counts;
-    return shadow_.live();
+    return shadow_.live(threads_);
 }
 
 void PathTracer::resolve_shadows(const Hits &hits) {

@@ -5,6 +5,8 @@
 
 #include <omp.h>
 
+#include <numeric>
+#include <stdexcept>
 #include <vector>
 
 #include "scene.h"
@@ -55,46 +57,98 @@ struct ShadowRay {
     }
 };
 
+// Keeps, in order, the entries of `items` for which keep(entry) holds and calls
+// emit(position, entry) for each kept one. Chunks run on `threads` threads:
+// each compacts its own chunk, then all move them to their final offsets.
+template <typename Keep, typename Emit>
+size_t compact_in_order(std::vector<int32_t> &items, int threads, Keep &&keep, Emit &&emit) {
+    // Scratch reused between calls (per calling thread; the team shares the caller's).
+    static thread_local std::vector<int32_t> scratch;
+    std::vector<int32_t> &kept = scratch;
+    const int64_t n = int64_t(items.size());
+    kept.resize(items.size());
+    std::vector<int64_t> offsets(size_t(std::max(1, threads)) + 1, 0);
+    int teams = 1;
+#pragma omp parallel num_threads(std::max(1, threads))
+    {
+        const int t = omp_get_thread_num(), nt = omp_get_num_threads();
+        if (t == 0) teams = nt;
+        const int64_t lo = n * t / nt, hi = n * (t + 1) / nt;
+        int64_t end = lo;
+        for (int64_t i = lo; i < hi; ++i)
+            if (keep(items[i])) kept[end++] = items[i];
+        offsets[t + 1] = end - lo;
+#pragma omp barrier
+#pragma omp single
+        for (int i = 0; i < nt; ++i) offsets[i + 1] += offsets[i];
+        // Every read of `items` happened before the barriers above.
+        for (int64_t i = lo; i < end; ++i) {
+            int64_t position = offsets[t] + (i - lo);
+            items[position] = kept[i];
+            emit(position, kept[i]);
+        }
+    }
+    const size_t total = size_t(offsets[size_t(teams)]);
+    items.resize(total);
+    return total;
+}
+
+// Shadow rays of one pass, one slot per work item. Slot storage is kept from
+// pass to pass and never constructed again (a wave opens tens of thousands of
+// slots per bounce): a kernel must set `live` in every slot it opens. Rays
+// still travelling are listed by index, so compaction moves 4-byte indices
+// instead of rays.
 class ShadowQueue {
 public:
-    std::vector<ShadowRay> rays;  // one slot per work item; finished rays are dropped by compaction
-
-    void clear() { rays.clear(); }
-    // Makes n empty slots; a kernel fills slot k for work item k (or leaves it dead).
-    void reset(size_t n) { rays.resize(n); }
-    ShadowRay &operator[](size_t k) { return rays[k]; }
-    size_t live() const {
+    // Opens n slots for a kernel to fill (slot k for work item k).
+    void open(size_t n) {
+        if (slots_.size() < n) slots_.resize(n);
+        opened_ = n;
+        travelling_.clear();
+        listed_ = false;
+    }
+    void clear() { open(0); }
+    ShadowRay &operator[](size_t k) { return slots_[k]; }
+    // Live rays: among the opened slots before the first trace, else among those travelling.
+    size_t live(int threads = 1) const {
+        if (listed_) return travelling_.size();
         size_t n = 0;
-        for (const ShadowRay &r : rays) n += r.live;
+#pragma omp parallel for schedule(static) num_threads(threads) reduction(+ : n)
+        for (int64_t k = 0; k < int64_t(opened_); ++k) n += slots_[k].live;
         return n;
     }
-    // Drops finished rays (keeping order) and writes the rest to the buffers.
+    // Drops finished rays from the travelling list (keeping slot order) and
+    // writes the next segment of the rest to the buffers.
     size_t compact_and_write(const RayBuffers &buf, int threads = 1) {
-        size_t n = 0;
-        for (size_t i = 0; i < rays.size(); ++i)
-            if (rays[i].live) {
-                if (n != i) rays[n] = rays[i];
-                ++n;
-            }
-        rays.resize(n);
-#pragma omp parallel for schedule(static) num_threads(threads)
-        for (int64_t k = 0; k < int64_t(n); ++k) {
-            const ShadowRay &r = rays[k];
-            buf.put(k, r.origin, r.dir, r.remaining() - r.target_eps);
+        if (!listed_) {
+            travelling_.resize(opened_);
+            std::iota(travelling_.begin(), travelling_.end(), 0);
+            listed_ = true;
         }
-        return n;
+        if (travelling_.size() > buf.capacity) {  // only then can the live ones overflow
+            size_t live = 0;
+            for (int32_t k : travelling_) live += slots_[k].live;
+            if (live > buf.capacity) throw std::invalid_argument("shadow ray buffers too small");
+        }
+        return compact_in_order(
+            travelling_, threads, [&](int32_t k) { return slots_[k].live; },
+            [&](int64_t j, int32_t k) {
+                const ShadowRay &r = slots_[k];
+                buf.put(size_t(j), r.origin, r.dir, r.remaining() - r.target_eps);
+            });
     }
-    // Advances each ray by one traced segment; deliver(target, value) receives
-    // contributions of rays that reached their target unoccluded.
+    // Advances each travelling ray by its traced segment (hit j belongs to the
+    // j-th travelling ray); deliver(receiver, value) receives the contributions
+    // of rays that reached their target unoccluded.
     template <typename Deliver>
     void resolve(const Scene &scene, const Hits &hits, int threads, MediumStats &stats, Deliver &&deliver) {
         MediumStats counts;
 #pragma omp parallel for schedule(static) num_threads(threads) reduction(+ : counts)
-        for (int64_t k = 0; k < int64_t(rays.size()); ++k) {
-            ShadowRay &r = rays[k];
+        for (int64_t j = 0; j < int64_t(travelling_.size()); ++j) {
+            ShadowRay &r = slots_[travelling_[j]];
             double remaining = r.remaining();
-            bool blocked = hits.prim[k] >= 0 && hits.tfar[k] < remaining - r.target_eps;
-            double t = blocked ? double(hits.tfar[k]) : remaining;
+            bool blocked = hits.prim[j] >= 0 && hits.tfar[j] < remaining - r.target_eps;
+            double t = blocked ? double(hits.tfar[j]) : remaining;
             if (r.medium >= 0) {
                 r.contribution *= transmittance(scene.media[r.medium], r.origin, r.dir, t, r.rng, counts);
             }
@@ -103,7 +157,7 @@ public:
                 if (!is_black(r.contribution)) deliver(r.receiver, r.contribution);
                 continue;
             }
-            int tri = hits.prim[k];
+            int tri = hits.prim[j];
             const Triangle &T = scene.triangles[tri];
             if (scene.materials[T.material].type != MaterialType::Null || is_black(r.contribution)) {
                 r.live = false;  // occluded
@@ -115,6 +169,12 @@ public:
         }
         stats += counts;
     }
+
+private:
+    std::vector<ShadowRay> slots_;
+    std::vector<int32_t> travelling_;  // slots whose rays are still on their way, in order
+    size_t opened_ = 0;
+    bool listed_ = false;  // travelling_ has been built since open()
 };
 
 // Float64 accumulation of per-pixel estimates; non-finite samples are counted
