@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 
 from compare import tables as T
-from compare.convergence import fit_slope, time_to_error
+from compare.convergence import fit_slope, fit_slope_above_floor, time_to_error
 from compare.imageio import write_exr, write_json
 from compare.report import images as I  # noqa: N812
 from compare.report.browser_check import check_page, find_chromium
@@ -30,6 +30,18 @@ def test_fit_slope_exact_power_law() -> None:
     assert f.r2 == pytest.approx(1.0)
     assert f.predict(16) == pytest.approx(0.3 * 16**-0.8)
     assert math.isnan(fit_slope([1.0], [1.0]).slope)
+
+
+def test_fit_slope_above_floor_removes_the_reference_error() -> None:
+    t = np.array([1.0, 2, 4, 8, 16])
+    floor = 0.05
+    measured = 0.4 / t + floor  # an unbiased method's error plus the reference's own error
+    assert fit_slope(t, measured).slope > -0.8  # the floor flattens the raw fit
+    f = fit_slope_above_floor(t, measured, floor)
+    assert f.slope == pytest.approx(-1.0)
+    assert f.n == 4  # at 16 s the error is below 2x the floor: dropped
+    assert math.isnan(fit_slope_above_floor(t, measured, math.nan).slope)
+    assert math.isnan(fit_slope_above_floor(t, measured, 1.0).slope)  # nothing above 2x
 
 
 def test_time_to_error() -> None:
@@ -91,6 +103,11 @@ def test_tables_best_flags_and_speedup(tmp_path: Path) -> None:
     assert 'class="best"' in html and "refbad" in html
     for name in ("runs", "summary", "convergence", "time_to_error", "stats"):
         assert (tmp_path / f"{name}.csv").is_file()
+    conv = tabs["convergence"].set_index(["method", "metric"])
+    # errors fall as 1/t; the reference's error (median 1e-4) is removed before the fit
+    assert conv.loc[("pt", "relmse"), "slope_ref_removed"] == pytest.approx(-1.0, abs=0.01)
+    assert conv.loc[("pt", "relmse"), "points_ref_removed"] == 6
+    assert np.isnan(conv.loc[("pt", "flip"), "slope_ref_removed"])  # no reference error known
 
 
 @pytest.fixture(scope="module")
@@ -167,6 +184,7 @@ def test_report_files(report: Path) -> None:
     index = (report / "index.html").read_text()
     page = (report / "scene-toy.html").read_text()
     assert "<svg" in index and 'href="scene-toy.html"' in index
+    assert "Reference error removed" in index and "ref. error removed" in page
     assert 'id="viewer"' in page and 'src="data/toy.js"' in page
     for text in (index, page):  # nothing fetched from the network
         assert not re.search(r"(src|href)=[\"']?(https?:)?//", text)

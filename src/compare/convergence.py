@@ -2,7 +2,9 @@
 
 For an unbiased estimator MSE ~ t^-1 (slope -1 on a log-log plot); a consistent progressive
 estimator with a d-dimensional kernel reaches at best t^(-4/(d+4)) (Knaus & Zwicker 2011).
-The fitted slope is reported next to each curve.
+The fitted slope is reported next to each curve. A noisy reference adds its own error to every
+measurement (E[measured] = true error + reference error for MSE; approximately for relMSE), which
+flattens the curves of fast methods; ``fit_slope_above_floor`` fits the excess over it.
 """
 
 from __future__ import annotations
@@ -39,6 +41,25 @@ def fit_slope(times: Sequence[float], errors: Sequence[float]) -> SlopeFit:
     ss_tot = float(((y - y.mean()) ** 2).sum())
     r2 = 1.0 - float((resid**2).sum()) / ss_tot if ss_tot > 0 else 1.0
     return SlopeFit(float(slope), float(intercept), r2, n)
+
+
+# Points whose error is within this factor of the floor are dropped from the excess fit: their
+# excess is mostly the noise of the floor's own estimate.
+FLOOR_MARGIN = 2.0
+
+
+def fit_slope_above_floor(
+    times: Sequence[float], errors: Sequence[float], floor: float, margin: float = FLOOR_MARGIN
+) -> SlopeFit:
+    """Slope of (error - floor) vs time, ``floor`` being an additive error that does not fall
+    with render time (the reference's own error). Uses the points with error >= margin x floor;
+    NaN (with n = points used) when fewer than two remain or the floor is unknown."""
+    e = np.asarray(errors, dtype=np.float64)
+    t = np.asarray(times, dtype=np.float64)
+    if not (math.isfinite(floor) and floor >= 0):
+        return SlopeFit(math.nan, math.nan, math.nan, 0)
+    keep = e >= margin * floor
+    return fit_slope(t[keep], e[keep] - floor)
 
 
 def time_to_error(

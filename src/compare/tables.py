@@ -8,7 +8,9 @@ Tables (all written by :func:`write_tables` into one folder):
 - ``overview.{md,html}`` primary metric, scene x method rows, one column per budget,
                          mean +- std over seeds, best method per scene and budget marked,
                          cells whose reference is not good enough flagged
-- ``convergence.csv``    fitted log-log slope of error vs render time per scene x method x metric
+- ``convergence.csv``    fitted log-log slope of error vs render time per scene x method x metric,
+                         and for MSE and relMSE the slope of the error minus the reference's own
+                         error (``slope_ref_removed``, over points at >= 2x that error)
 - ``time_to_error.csv``  time each method needs to reach a target error, and its speed-up vs the
                          baseline method (target: the baseline's mean error at its largest
                          budget, else the median final error of all methods)
@@ -25,10 +27,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .convergence import fit_slope, time_to_error
+from .convergence import fit_slope, fit_slope_above_floor, time_to_error
 from .metrics import METRICS
 
 KEYS = ["scene", "method", "budget"]
+# Metrics whose reference error is known, and its column in runs.csv (the reference's own
+# error adds to theirs: compare.metrics.reference_error).
+REFERENCE_ERROR: dict[str, str] = {"mse": "ref_mse", "relmse": "ref_relmse"}
 
 METRIC_LABELS: dict[str, str] = {
     "mse": "MSE",
@@ -97,6 +102,12 @@ def convergence_table(runs: pd.DataFrame, metrics: Sequence[str] = METRICS) -> p
                 continue
             t = d["render_seconds"].where(d["render_seconds"] > 0, d["budget"])
             f = fit_slope(t.to_numpy(), d[m].to_numpy())
+            floor = REFERENCE_ERROR.get(m)
+            g = (
+                fit_slope_above_floor(t.to_numpy(), d[m].to_numpy(), float(d[floor].median()))
+                if floor in d
+                else None
+            )
             rows.append(
                 {
                     "scene": scene,
@@ -106,6 +117,9 @@ def convergence_table(runs: pd.DataFrame, metrics: Sequence[str] = METRICS) -> p
                     "intercept_log10": f.intercept,
                     "r2": f.r2,
                     "points": f.n,
+                    # The same fit on error minus the reference's own error (see convergence.py).
+                    "slope_ref_removed": g.slope if g else np.nan,
+                    "points_ref_removed": g.n if g else 0,
                 }
             )
     return pd.DataFrame(rows)

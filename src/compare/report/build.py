@@ -68,7 +68,17 @@ def _metric_label(m: str) -> str:
 
 
 def _ref_error_for(metric: str, ref: dict[str, Any]) -> float | None:
-    return {"relmse": ref.get("ref_relmse"), "mse": ref.get("ref_mse")}.get(metric)
+    key = T.REFERENCE_ERROR.get(metric)
+    return ref.get(key) if key else None
+
+
+def _slopes_note() -> str:
+    return (
+        '<p class="note">A noisy reference adds its own error to every measurement, which '
+        'flattens the curves of methods that get close to it. "Reference error removed": the '
+        "fit of (error − reference error) over the runs with at least twice the reference "
+        "error; blank where fewer than two such runs exist.</p>"
+    )
 
 
 def _legend(metric: str, factor: float) -> str:
@@ -153,10 +163,16 @@ def build_scene_page(spec: dict[str, Any]) -> None:
         conv = tabs.get("convergence")
         tte = tabs.get("time_to_error")
         if conv is not None and not conv.empty:
-            cs = conv[conv.scene == scene].pivot(index="method", columns="metric", values="slope")
-            cs = cs[[c for c in T.METRICS if c in cs.columns]].reset_index()
+            sc = conv[conv.scene == scene]
+            cs = sc.pivot(index="method", columns="metric", values="slope")
+            cs = cs[[c for c in T.METRICS if c in cs.columns]]
+            for m in T.REFERENCE_ERROR:
+                if m in cs.columns and "slope_ref_removed" in sc:
+                    fixed = sc[sc.metric == m].set_index("method")["slope_ref_removed"]
+                    cs.insert(list(cs.columns).index(m) + 1, f"{m} (ref. error removed)", fixed)
             body.append("<h3>Fitted slopes (d log error / d log time)</h3>")
-            body.append(T.frame_html(cs, 3))
+            body.append(_slopes_note())
+            body.append(T.frame_html(cs.reset_index(), 3))
         if tte is not None and not tte.empty:
             ts = tte[tte.scene == scene].drop(columns=["scene"])
             body.append("<h3>Time to reach a target error</h3>")
@@ -355,10 +371,19 @@ def build_index(spec: dict[str, Any]) -> None:
 
     conv = tabs.get("convergence")
     if conv is not None and not conv.empty:
-        c = conv[conv.metric == metric].pivot(index="scene", columns="method", values="slope")
-        c = c.reindex(columns=[m for m in methods if m in c.columns]).reset_index()
+        cm = conv[conv.metric == metric]
         body.append(f"<h2>Convergence slopes ({e(_metric_label(metric))} vs time, log-log)</h2>")
-        body.append(T.frame_html(c, 3))
+        columns = ["slope"]
+        if metric in T.REFERENCE_ERROR and "slope_ref_removed" in cm:
+            body.append(_slopes_note())
+            columns.append("slope_ref_removed")
+        for col in columns:
+            c = cm.pivot(index="scene", columns="method", values=col)
+            c = c.reindex(columns=[m for m in methods if m in c.columns]).reset_index()
+            if len(columns) > 1:
+                label = "As measured" if col == "slope" else "Reference error removed"
+                body.append(f"<h3>{label}</h3>")
+            body.append(T.frame_html(c, 3))
 
     body.append("<h2>Convergence plots</h2>")
     body.append('<div class="plots">')
