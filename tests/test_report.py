@@ -55,6 +55,23 @@ def test_time_to_error() -> None:
     assert math.isnan(time_to_error(t, [1, 1, 1], 0.1)[0])
 
 
+def test_time_to_error_far_outside_the_budgets_becomes_a_bound() -> None:
+    t = np.array([1.0, 2.0, 4.0])
+    e = np.array([0.1, 0.05, 0.025])  # slope -1
+    # within 4x of the measured times: the extrapolation stands
+    assert T.bounded(time_to_error(t, e, 0.01), t, e, 0.01) == (pytest.approx(10.0), True, "")
+    # 0.001 would need 100 s: only "not reached by 4 s" is measured
+    assert T.bounded(time_to_error(t, e, 0.001), t, e, 0.001) == (4.0, False, ">=")
+    # 10 would be reached at 0.01 s: only "reached by 1 s" is measured
+    assert T.bounded(time_to_error(t, e, 10.0), t, e, 10.0) == (1.0, False, "<=")
+    flat = np.array([0.1, 0.1, 0.1])  # no slope to extrapolate with
+    assert T.bounded(time_to_error(t, flat, 0.01), t, flat, 0.01) == (4.0, False, ">=")
+    assert T.bounded(time_to_error(t, flat, 1.0), t, flat, 1.0) == (1.0, False, "<=")
+    assert T.bounded((2.0, False), t, e, 0.05) == (2.0, False, "")  # interpolated: unchanged
+    assert T._speedup_bound("", "<=") == ">=" and T._speedup_bound(">=", "") == ">="
+    assert T._speedup_bound(">=", ">=") == "?"
+
+
 def test_rgbe_roundtrip() -> None:
     rng = np.random.default_rng(0)
     a = rng.random((6, 5, 3)) * 50

@@ -95,4 +95,7 @@ def time_to_error(
     fit = fit_slope(t, e)
     if not fit.slope < 0:
         return math.nan, True
-    return float(10 ** ((lg - fit.intercept) / fit.slope)), True
+    exponent = (lg - fit.intercept) / fit.slope
+    if not abs(exponent) < 300:  # a nearly flat fit: out of float range either way
+        return (math.inf if exponent > 0 else 0.0), True
+    return float(10**exponent), True

@@ -13,7 +13,9 @@ Tables (all written by :func:`write_tables` into one folder):
                          error (``slope_ref_removed``, over points at >= 2x that error)
 - ``time_to_error.csv``  time each method needs to reach a target error, and its speed-up vs the
                          baseline method (target: the baseline's mean error at its largest
-                         budget, else the median final error of all methods)
+                         budget, else the median final error of all methods); extrapolations
+                         further than 4x outside the measured times become bounds (``bound``
+                         "<=" / ">=", and ``speedup_bound`` for the speed-up)
 - ``stats.csv``          render statistics per run (iterations, rays, load time, memory, wall time)
 """
 
@@ -137,12 +139,13 @@ def time_to_error_table(summary: pd.DataFrame, metric: str, baseline: str) -> pd
             finals = d.sort_values("budget").groupby("method")[col].last()
             target = float(finals.median())
             target_from = "median final error"
-        times: dict[str, tuple[float, bool]] = {}
+        times: dict[str, tuple[float, bool, str]] = {}
         for method, dm in d.groupby("method", sort=True):
             t_col = dm["render_seconds_mean"].where(dm["render_seconds_mean"] > 0, dm["budget"])
-            times[method] = time_to_error(t_col.to_numpy(), dm[col].to_numpy(), target)
-        t_base = times.get(baseline, (math.nan, True))[0]
-        for method, (t, extrap) in times.items():
+            t, e = t_col.to_numpy(), dm[col].to_numpy()
+            times[method] = bounded(time_to_error(t, e, target), t, e, target)
+        t_base, _, base_bound = times.get(baseline, (math.nan, True, ""))
+        for method, (t, extrap, bound) in times.items():
             rows.append(
                 {
                     "scene": scene,
@@ -152,10 +155,48 @@ def time_to_error_table(summary: pd.DataFrame, metric: str, baseline: str) -> pd
                     "target_from": target_from,
                     "seconds": t,
                     "extrapolated": extrap,
+                    "bound": bound,
                     f"speedup_vs_{baseline}": t_base / t if t > 0 else math.nan,
+                    "speedup_bound": _speedup_bound(base_bound, bound),
                 }
             )
     return pd.DataFrame(rows)
+
+
+# Extrapolated times further than this factor outside a method's measured times are replaced
+# by what the measurements do show: reached by its first budget, or not by its last.
+EXTRAPOLATION_LIMIT = 4.0
+
+
+def bounded(
+    estimate: tuple[float, bool], times: np.ndarray, errors: np.ndarray, target: float
+) -> tuple[float, bool, str]:
+    """(seconds, extrapolated, bound) from a time_to_error estimate of the curve (times,
+    errors): an extrapolation far outside the measured times, or none at all, becomes what
+    the measurements show: "<=" the first time (its error was already at or below the target
+    there) or ">=" the last (never reached)."""
+    t, extrap = estimate
+    ok = np.isfinite(times) & np.isfinite(errors) & (times > 0)
+    if not extrap or not ok.any():
+        return t, extrap, ""
+    times, errors = times[ok], errors[ok]
+    first, last = float(times.min()), float(times.max())
+    if errors[np.argmin(times)] <= target:  # reached by the first measurement
+        if math.isfinite(t) and t >= first / EXTRAPOLATION_LIMIT:
+            return t, True, ""
+        return first, False, "<="
+    if math.isfinite(t) and t <= last * EXTRAPOLATION_LIMIT:
+        return t, True, ""
+    return last, False, ">="
+
+
+def _speedup_bound(base: str, method: str) -> str:
+    """Direction of the speed-up t_base / t_method when either time is only a bound."""
+    lower = {"<=": ">=", ">=": "<=", "": ""}[method]  # speed-up bound from the method's time
+    upper = {"<=": "<=", ">=": ">=", "": ""}[base]  # and from the baseline's
+    if lower and upper and lower != upper:
+        return "?"
+    return lower or upper
 
 
 def stats_table(runs: pd.DataFrame) -> pd.DataFrame:

@@ -72,6 +72,9 @@ def _ref_error_for(metric: str, ref: dict[str, Any]) -> float | None:
     return ref.get(key) if key else None
 
 
+_BOUND_SIGN = {"<=": "≤ ", ">=": "≥ ", "?": "?"}
+
+
 def _slopes_note() -> str:
     return (
         '<p class="note">A noisy reference adds its own error to every measurement, which '
@@ -180,7 +183,9 @@ def build_scene_page(spec: dict[str, Any]) -> None:
                 body.append(
                     f'<p class="note">Target: {e(_metric_label(ts.metric.iloc[0]))} = '
                     f"{T.fmt(ts.target.iloc[0])} ({e(str(ts.target_from.iloc[0]))}); "
-                    "extrapolated = beyond the measured budgets, from the fitted slope.</p>"
+                    "extrapolated = beyond the measured budgets, from the fitted slope (at most "
+                    "4x outside them); bound = only known to be reached by the first budget (<=) "
+                    "or not by the last (>=).</p>"
                 )
             body.append(T.frame_html(ts.drop(columns=["metric", "target", "target_from"]), 3))
 
@@ -347,7 +352,9 @@ def build_index(spec: dict[str, Any]) -> None:
             f'<p class="note">Target per scene: {e(_metric_label(metric))} reached by '
             f"{e(baseline)} at its largest budget (median final error if {e(baseline)} is not in "
             "the study). Seconds of render time, interpolated log-log between budgets; "
-            "* = extrapolated from the fitted slope. Speed-up = baseline time / method time.</p>"
+            "* = extrapolated from the fitted slope (at most 4x outside the measured times; "
+            "beyond that ≤ first budget or ≥ last budget, as measured). "
+            "Speed-up = baseline time / method time.</p>"
         )
         rows = ['<table class="data"><thead><tr><th>scene</th>']
         rows += [f"<th>{e(m)}</th>" for m in methods]
@@ -362,8 +369,11 @@ def build_index(spec: dict[str, Any]) -> None:
                 r0 = r.iloc[0]
                 star = "*" if bool(r0.extrapolated) else ""
                 sp = r0.get(col, math.nan)
+                bound = _BOUND_SIGN.get(str(r0.get("bound", "")), "")
+                sp_bound = _BOUND_SIGN.get(str(r0.get("speedup_bound", "")), "")
+                speedup = "?" if sp_bound == "?" else f"{sp_bound}×{T.fmt(sp, 2)}"
                 rows.append(
-                    f"<td>{T.fmt(r0.seconds)} s{star}<br><small>×{T.fmt(sp, 2)}</small></td>"
+                    f"<td>{bound}{T.fmt(r0.seconds)} s{star}<br><small>{speedup}</small></td>"
                 )
             rows.append("</tr>")
         rows.append("</tbody></table>")
