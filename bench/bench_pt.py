@@ -7,6 +7,8 @@
     then re-traced alone by the same tracer with the same thread count).
 (b) Equal time: relMSE of pt and of Mitsuba volpath (fastest variant here) after the same
     render time, against a high-spp Mitsuba reference cached under bench/.cache/.
+(c) Where pt's time goes: wall time per traced ray in Embree (`intersect`) and in each native
+    pass (shade, shadow_rays, resolve_shadows, next_rays, begin_wave, end_wave).
 Numbers are printed, never asserted: timings on a shared machine are noisy.
 """
 
@@ -70,6 +72,42 @@ def raw_embree_rate(scene, threads: int, waves: int = 4) -> tuple[float, float]:
     return pt_rate, rays / best
 
 
+class _PassTimer:
+    """Wraps a kernel or tracer object: wall seconds spent in each of its methods."""
+
+    def __init__(self, target, seconds: dict[str, float]) -> None:
+        self._target, self._seconds = target, seconds
+
+    def __getattr__(self, name: str):
+        attr = getattr(self._target, name)
+        if not callable(attr):
+            return attr
+
+        def call(*args, **kwargs):
+            start = time.perf_counter()
+            try:
+                return attr(*args, **kwargs)
+            finally:
+                self._seconds[name] = self._seconds.get(name, 0.0) + time.perf_counter() - start
+
+        return call
+
+
+def pass_breakdown(scene, threads: int, waves: int = 10) -> tuple[dict[str, float], int]:
+    """Wall seconds per pass (Embree's `intersect` and each native kernel pass) over warm
+    waves, and the rays traced meanwhile."""
+    method = PathTracing(scene, seed=13, threads=threads, params={})
+    method.run_iteration(0)
+    seconds: dict[str, float] = {}
+    method.kernel = _PassTimer(method.kernel, seconds)
+    tracer = method.tracer
+    method.tracer = _PassTimer(tracer, seconds)
+    rays = tracer.rays_traced
+    for i in range(1, waves + 1):
+        method.run_iteration(i)
+    return seconds, tracer.rays_traced - rays
+
+
 def timed(
     method_id: str, scene, seconds: float, threads: int, seed: int
 ) -> tuple[np.ndarray, dict]:
@@ -119,6 +157,11 @@ def main() -> None:
             f"mitsuba/pt {errors['mitsuba'][0] / errors['pt'][0]:.2f}x",
             flush=True,
         )
+        seconds, rays = pass_breakdown(scene, args.threads)
+        per_ray = ", ".join(
+            f"{k} {1e9 * v / rays:.0f}" for k, v in sorted(seconds.items(), key=lambda kv: -kv[1])
+        )
+        print(f"{name:<10} wall ns per traced ray by pass: {per_ray}", flush=True)
 
 
 if __name__ == "__main__":
