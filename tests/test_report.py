@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 
 from compare import tables as T
-from compare.convergence import fit_slope, fit_slope_above_floor, time_to_error
+from compare.convergence import bounded, fit_slope, fit_slope_above_floor, time_to_error
 from compare.imageio import write_exr, write_json
 from compare.report import images as I  # noqa: N812
 from compare.report.browser_check import check_page, find_chromium
@@ -59,15 +59,15 @@ def test_time_to_error_far_outside_the_budgets_becomes_a_bound() -> None:
     t = np.array([1.0, 2.0, 4.0])
     e = np.array([0.1, 0.05, 0.025])  # slope -1
     # within 4x of the measured times: the extrapolation stands
-    assert T.bounded(time_to_error(t, e, 0.01), t, e, 0.01) == (pytest.approx(10.0), True, "")
+    assert bounded(time_to_error(t, e, 0.01), t, e, 0.01) == (pytest.approx(10.0), True, "")
     # 0.001 would need 100 s: only "not reached by 4 s" is measured
-    assert T.bounded(time_to_error(t, e, 0.001), t, e, 0.001) == (4.0, False, ">=")
+    assert bounded(time_to_error(t, e, 0.001), t, e, 0.001) == (4.0, False, ">=")
     # 10 would be reached at 0.01 s: only "reached by 1 s" is measured
-    assert T.bounded(time_to_error(t, e, 10.0), t, e, 10.0) == (1.0, False, "<=")
+    assert bounded(time_to_error(t, e, 10.0), t, e, 10.0) == (1.0, False, "<=")
     flat = np.array([0.1, 0.1, 0.1])  # no slope to extrapolate with
-    assert T.bounded(time_to_error(t, flat, 0.01), t, flat, 0.01) == (4.0, False, ">=")
-    assert T.bounded(time_to_error(t, flat, 1.0), t, flat, 1.0) == (1.0, False, "<=")
-    assert T.bounded((2.0, False), t, e, 0.05) == (2.0, False, "")  # interpolated: unchanged
+    assert bounded(time_to_error(t, flat, 0.01), t, flat, 0.01) == (4.0, False, ">=")
+    assert bounded(time_to_error(t, flat, 1.0), t, flat, 1.0) == (1.0, False, "<=")
+    assert bounded((2.0, False), t, e, 0.05) == (2.0, False, "")  # interpolated: unchanged
     assert T._speedup_bound("", "<=") == ">=" and T._speedup_bound(">=", "") == ">="
     assert T._speedup_bound(">=", ">=") == "?"
 

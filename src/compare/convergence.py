@@ -5,6 +5,7 @@ estimator with a d-dimensional kernel reaches at best t^(-4/(d+4)) (Knaus & Zwic
 The fitted slope is reported next to each curve. A noisy reference adds its own error to every
 measurement (E[measured] = true error + reference error for MSE; approximately for relMSE), which
 flattens the curves of fast methods; ``fit_slope_above_floor`` fits the excess over it.
+``bounded`` keeps a time-to-error estimate within what the measurements support.
 """
 
 from __future__ import annotations
@@ -99,3 +100,30 @@ def time_to_error(
     if not abs(exponent) < 300:  # a nearly flat fit: out of float range either way
         return (math.inf if exponent > 0 else 0.0), True
     return float(10**exponent), True
+
+
+# Extrapolated times further than this factor outside a method's measured times are replaced
+# by what the measurements do show: reached by its first budget, or not by its last.
+EXTRAPOLATION_LIMIT = 4.0
+
+
+def bounded(
+    estimate: tuple[float, bool], times: np.ndarray, errors: np.ndarray, target: float
+) -> tuple[float, bool, str]:
+    """(seconds, extrapolated, bound) from a time_to_error estimate of the curve (times,
+    errors): an extrapolation far outside the measured times, or none at all, becomes what
+    the measurements show: "<=" the first time (its error was already at or below the target
+    there) or ">=" the last (never reached)."""
+    t, extrap = estimate
+    ok = np.isfinite(times) & np.isfinite(errors) & (times > 0)
+    if not extrap or not ok.any():
+        return t, extrap, ""
+    times, errors = times[ok], errors[ok]
+    first, last = float(times.min()), float(times.max())
+    if errors[np.argmin(times)] <= target:  # reached by the first measurement
+        if math.isfinite(t) and t >= first / EXTRAPOLATION_LIMIT:
+            return t, True, ""
+        return first, False, "<="
+    if math.isfinite(t) and t <= last * EXTRAPOLATION_LIMIT:
+        return t, True, ""
+    return last, False, ">="

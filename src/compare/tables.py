@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .convergence import fit_slope, fit_slope_above_floor, time_to_error
+from .convergence import bounded, fit_slope, fit_slope_above_floor, time_to_error
 from .metrics import METRICS
 
 KEYS = ["scene", "method", "budget"]
@@ -161,33 +161,6 @@ def time_to_error_table(summary: pd.DataFrame, metric: str, baseline: str) -> pd
                 }
             )
     return pd.DataFrame(rows)
-
-
-# Extrapolated times further than this factor outside a method's measured times are replaced
-# by what the measurements do show: reached by its first budget, or not by its last.
-EXTRAPOLATION_LIMIT = 4.0
-
-
-def bounded(
-    estimate: tuple[float, bool], times: np.ndarray, errors: np.ndarray, target: float
-) -> tuple[float, bool, str]:
-    """(seconds, extrapolated, bound) from a time_to_error estimate of the curve (times,
-    errors): an extrapolation far outside the measured times, or none at all, becomes what
-    the measurements show: "<=" the first time (its error was already at or below the target
-    there) or ">=" the last (never reached)."""
-    t, extrap = estimate
-    ok = np.isfinite(times) & np.isfinite(errors) & (times > 0)
-    if not extrap or not ok.any():
-        return t, extrap, ""
-    times, errors = times[ok], errors[ok]
-    first, last = float(times.min()), float(times.max())
-    if errors[np.argmin(times)] <= target:  # reached by the first measurement
-        if math.isfinite(t) and t >= first / EXTRAPOLATION_LIMIT:
-            return t, True, ""
-        return first, False, "<="
-    if math.isfinite(t) and t <= last * EXTRAPOLATION_LIMIT:
-        return t, True, ""
-    return last, False, ">="
 
 
 def _speedup_bound(base: str, method: str) -> str:

@@ -111,11 +111,11 @@ public:
     ShadowRay &operator[](size_t k) { return slots_[k]; }
     // Live rays: among the opened slots before the first trace, else among those travelling.
     size_t live(int threads = 1) const {
-        if (listed_) return travelling_.size();
-        size_t n = 0;
-#pragma omp parallel for schedule(static) num_threads(threads) reduction(+ : n)
-        for (int64_t k = 0; k < int64_t(opened_); ++k) n += slots_[k].live;
-        return n;
+        const int64_t n = listed_ ? int64_t(travelling_.size()) : int64_t(opened_);
+        size_t count = 0;
+#pragma omp parallel for schedule(static) num_threads(threads) reduction(+ : count)
+        for (int64_t j = 0; j < n; ++j) count += slots_[listed_ ? size_t(travelling_[j]) : size_t(j)].live;
+        return count;
     }
     // Drops finished rays from the travelling list (keeping slot order) and
     // writes the next segment of the rest to the buffers.
