@@ -79,6 +79,22 @@ public:
         double w = p.prev_delta ? 1.0 : power_heuristic(p.prev_pdf, scene_.area_light_pdf(tri, p.prev_pos, x));
         p.radiance += p.throughput * Le * w;
     }
+    // The path's ray ended on triangle `tri` at barycentrics (u, v), or escaped (tri < 0):
+    // emission found there is added and null boundaries are crossed. True when x is a
+    // scattering surface the method handles next.
+    bool reach_surface(CameraPath &p, int tri, double u, double v, Vec3 &x) const {
+        if (tri < 0) {  // escaped: the scenes have no environment light
+            p.alive = false;
+            return false;
+        }
+        x = scene_.triangles[tri].point(u, v);
+        add_emission(p, tri, x);
+        if (scene_.materials[scene_.triangles[tri].material].type == MaterialType::Null) {
+            cross_null(p, tri, x);
+            return false;
+        }
+        return true;
+    }
     // Index-matched boundary: change medium, keep direction, depth and MIS state.
     void cross_null(CameraPath &p, int tri, const Vec3 &x) const {
         p.medium = scene_.triangles[tri].medium_after(p.medium, p.dir);

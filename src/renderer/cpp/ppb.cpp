@@ -141,19 +141,8 @@ size_t PhotonBeams::shade(const Hits &hits) {
                 continue;
             }
         }
-        if (tri < 0) {  // escaped: the scenes have no environment light
-            p.alive = false;
-            continue;
-        }
-        const Triangle &T = scene.triangles[tri];
-        Vec3 x = T.point(hits.u[k], hits.v[k]);
-
-        steps_.add_emission(p, tri, x);
-        if (scene.materials[T.material].type == MaterialType::Null) {
-            steps_.cross_null(p, tri, x);
-            continue;
-        }
-        scatter_on_surface(p, k, tri, x);
+        Vec3 x;
+        if (steps_.reach_surface(p, tri, hits.u[k], hits.v[k], x)) scatter_on_surface(p, k, tri, x);
     }
     stats_.beam_pairs += pairs;
     stats_.density_lookups += lookups;

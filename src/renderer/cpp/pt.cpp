@@ -41,18 +41,9 @@ size_t PathTracer::shade(const Hits &hits) {
                 continue;
             }
         }
-        if (tri < 0) {  // escaped: the scenes have no environment light
-            p.alive = false;
-            continue;
-        }
-        const Triangle &T = scene.triangles[tri];
-        Vec3 x = T.point(hits.u[k], hits.v[k]);
-        steps_.add_emission(p, tri, x);
-        const Material &mat = scene.materials[T.material];
-        if (mat.type == MaterialType::Null) {
-            steps_.cross_null(p, tri, x);
-            continue;
-        }
+        Vec3 x;
+        if (!steps_.reach_surface(p, tri, hits.u[k], hits.v[k], x)) continue;
+        const Material &mat = scene.materials[scene.triangles[tri].material];
         if (!steps_.count_event(p)) continue;
         if (!mat.is_delta()) steps_.next_event_on_surface(p, shadow, index, tri, x);
         steps_.continue_by_bsdf(p, tri, x);
