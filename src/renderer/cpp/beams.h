@@ -118,20 +118,7 @@ void BeamBvh::query(const Vec3 &o, const Vec3 &d, double tmax, Visit &&visit) co
     stack[top++] = 0;
     while (top) {
         const Node &n = nodes_[stack[--top]];
-        double t0 = 0, t1 = tmax;
-        bool miss = false;
-        for (int a = 0; a < 3 && !miss; ++a) {
-            if (d[a] == 0) {
-                miss = o[a] < n.lo[a] || o[a] > n.hi[a];
-                continue;
-            }
-            double ta = (n.lo[a] - o[a]) * inv[a], tb = (n.hi[a] - o[a]) * inv[a];
-            if (ta > tb) std::swap(ta, tb);
-            t0 = std::max(t0, ta);
-            t1 = std::min(t1, tb);
-            miss = t0 > t1;
-        }
-        if (miss) continue;
+        if (!ray_meets_box(o, d, inv, n.lo, n.hi, tmax)) continue;
         if (n.count == 0) {
             // Children are pushed so that the left one is visited first: a fixed order.
             stack[top++] = n.first + 1;

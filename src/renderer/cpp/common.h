@@ -57,6 +57,27 @@ inline bool is_finite(const Vec3 &v) {
 }
 inline Vec3 reflect(const Vec3 &w, const Vec3 &n) { return n * (2.0 * dot(w, n)) - w; }
 
+// Whether the ray o + t d, t in [0, tmax], meets the box [lo - grow, hi + grow]: slab test,
+// inv = 1 / d componentwise (a zero component tests the slab directly).
+template <typename Scalar>
+bool ray_meets_box(const Vec3 &o, const Vec3 &d, const Vec3 &inv, const Scalar lo[3], const Scalar hi[3],
+                   double tmax, double grow = 0) {
+    double t0 = 0, t1 = tmax;
+    for (int a = 0; a < 3; ++a) {
+        double l = double(lo[a]) - grow, h = double(hi[a]) + grow;
+        if (d[a] == 0) {
+            if (o[a] < l || o[a] > h) return false;
+            continue;
+        }
+        double ta = (l - o[a]) * inv[a], tb = (h - o[a]) * inv[a];
+        if (ta > tb) std::swap(ta, tb);
+        t0 = std::max(t0, ta);
+        t1 = std::min(t1, tb);
+        if (t0 > t1) return false;
+    }
+    return true;
+}
+
 // Orthonormal basis around a unit vector (Duff et al. 2017, branchless).
 struct Frame {
     Vec3 s, t, n;

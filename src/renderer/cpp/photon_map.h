@@ -65,22 +65,7 @@ public:
         stack[top++] = 0;
         while (top) {
             const Node &n = nodes_[stack[--top]];
-            // Slab test against the node's box grown by r.
-            double t0 = 0, t1 = tmax;
-            bool miss = false;
-            for (int a = 0; a < 3 && !miss; ++a) {
-                double lo = n.lo[a] - r, hi = n.hi[a] + r;
-                if (d[a] == 0) {
-                    miss = o[a] < lo || o[a] > hi;
-                    continue;
-                }
-                double ta = (lo - o[a]) * inv[a], tb = (hi - o[a]) * inv[a];
-                if (ta > tb) std::swap(ta, tb);
-                t0 = std::max(t0, ta);
-                t1 = std::min(t1, tb);
-                miss = t0 > t1;
-            }
-            if (miss) continue;
+            if (!ray_meets_box(o, d, inv, n.lo, n.hi, tmax, r)) continue;  // the box grown by r
             if (n.left < 0) {
                 for (uint32_t i = n.begin; i < n.end; ++i) {
                     Vec3 v = points_[i] - o;
