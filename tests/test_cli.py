@@ -155,6 +155,16 @@ def test_bad_scene_gives_one_line_error_and_no_output(tmp_path, kind):
             "core",
         ),
         (["compare", "missing-a.exr", "missing-b.exr"], "missing-a.exr"),
+        (["validate", "cbox", "--set", "method.radius=1"], "apply to `pgi render` only"),
+        (
+            ["render", "cbox", "--method", "pt", "--time", "1", "--snapshots", "1,2"]
+            + ["-o", "x.exr"],
+            "beyond --time 1",
+        ),
+        (
+            ["reference", "cbox", "--spp", "1", "--set", "method.radius=1", "-o", "r.exr"],
+            "apply to `pgi render` only",
+        ),
     ],
 )
 def test_user_mistakes_are_one_line_errors(tmp_path, args, expected):

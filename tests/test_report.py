@@ -181,10 +181,16 @@ def report(tmp_path_factory: pytest.TempPathFactory) -> Path:
         "methods": methods,
         "scenes": ["toy"],
     }
+    scene_file = wd / "scene.yaml"  # only its self-description is read
+    scene_file.write_text(
+        "description: A toy scene for the report test.\n"
+        "stresses: [direct light]\nexpected_winners: [pt, bdpt]\n"
+    )
     build_scene_page(
         {
             **common,
             "scene": "toy",
+            "scene_file": str(scene_file),
             "ref": str(wd / "ref.exr"),
             "ref_json": str(wd / "ref.json"),
             "seed": 1,
@@ -203,6 +209,8 @@ def test_report_files(report: Path) -> None:
     assert "<svg" in index and 'href="scene-toy.html"' in index
     assert "Reference error removed" in index and "ref. error removed" in page
     assert 'id="viewer"' in page and 'src="data/toy.js"' in page
+    assert "A toy scene for the report test." in page and "bdpt (not in this study)" in page
+    assert re.search(r"<b>Won</b> at [^:]+: (pt \(as expected|lt \(not among the expected)", page)
     for text in (index, page):  # nothing fetched from the network
         assert not re.search(r"(src|href)=[\"']?(https?:)?//", text)
     data = (report / "data" / "toy.js").read_text()

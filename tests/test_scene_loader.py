@@ -168,6 +168,19 @@ def test_negative_density(tmp_path):
     assert "[1, 0, 1]" in msg
 
 
+def test_expected_winners_are_method_ids(tmp_path):
+    scene = load_scene(write(tmp_path, edit(expected_winners=["pt", "vrl"])))
+    assert scene.expected_winners == ["pt", "vrl"]  # vrl: in the study's table, not built yet
+    expect_error(write(tmp_path, edit(expected_winners=["pt", "bpdt"])), "expected_winners[1]",
+                 "expected one of: pt, lt, .*bdpt")  # fmt: skip
+
+
+def test_grid_sigma_t_is_grey(tmp_path):
+    # The renderer scales one density by one extinction; RGB would diverge from Mitsuba.
+    path = grid_scene(tmp_path, np.ones((2, 2, 2)), sigma_t=[1, 2, 3])
+    expect_error(path, "media.smoke.sigma_t", "expected a number")
+
+
 def test_negative_sigma_t_and_bad_albedo(tmp_path):
     fog = {"type": "homogeneous", "sigma_t": [1, -1, 1], "albedo": 0.5}
     expect_error(write(tmp_path, edit(media={"fog": fog})), "media.fog.sigma_t[1]", ">= 0")
@@ -266,6 +279,11 @@ def test_bad_overrides(tmp_path):
         load_scene(path, ["film.width"])
     with pytest.raises(PgiError, match=r"shapes\[7\] does not exist"):
         load_scene(path, ["shapes[7].material=white"])
+    # editing a medium the scene lacks names what it has; defining one whole is allowed
+    with pytest.raises(PgiError, match="no media entry 'fog' \\(it has: none\\)"):
+        load_scene(path, ["media.fog.scale=2"])
+    fog = "media.fog={type: homogeneous, sigma_t: 1, albedo: 0.5}"
+    assert load_scene(path, [fog]).media["fog"].sigma_t == (1.0, 1.0, 1.0)
 
 
 def test_include(tmp_path):

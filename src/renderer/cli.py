@@ -36,13 +36,15 @@ def _positive(kind: type):
     return parse
 
 
-def _split_sets(items: list[str]) -> tuple[list[str], dict]:
+def _split_sets(items: list[str], command: str = "render") -> tuple[list[str], dict]:
     """--set key=value: ``method.X`` keys are method parameters, the rest edit the scene."""
     overrides, params = [], {}
     for item in items:
         if "=" not in item:
             raise PgiError(f"--set {item!r}: expected key=value")
         key, value = item.split("=", 1)
+        if key.startswith("method.") and command != "render":
+            raise PgiError(f"--set {item!r}: method parameters apply to `pgi render` only")
         if key.startswith("method."):
             import yaml
 
@@ -91,7 +93,7 @@ def cmd_reference(args: argparse.Namespace) -> int:
     from .scene import load_scene
 
     out = _output(args.output)
-    overrides, _ = _split_sets(args.set)
+    overrides, _ = _split_sets(args.set, "reference")
     scene = load_scene(args.scene, overrides)
     image, info = render_reference(scene, args.spp, seed=args.seed, threads=args.threads)
     info = dict(
@@ -137,7 +139,7 @@ def cmd_methods(args: argparse.Namespace) -> int:
 def cmd_validate(args: argparse.Namespace) -> int:
     from .scene import load_scene
 
-    overrides, _ = _split_sets(args.set)
+    overrides, _ = _split_sets(args.set, "validate")
     scene = load_scene(args.scene, overrides)
     triangles = sum(len(s.faces) for s in scene.shapes)
     print(
@@ -154,19 +156,20 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"pgi {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
 
-    def scene_arg(p: argparse.ArgumentParser) -> None:
+    def scene_arg(p: argparse.ArgumentParser, method_params: bool = False) -> None:
         p.add_argument("scene", help="scene name, folder, or scene.yaml file")
         p.add_argument(
             "--set",
             action="append",
             default=[],
             metavar="KEY=VALUE",
-            help="override a scene value (e.g. film.width=64) or, as method.KEY=VALUE, "
-            "a method parameter; repeatable",
+            help="override a scene value (e.g. film.width=64)"
+            + (" or, as method.KEY=VALUE, a method parameter" if method_params else "")
+            + "; repeatable",
         )
 
     r = sub.add_parser("render", help="render a scene with one method")
-    scene_arg(r)
+    scene_arg(r, method_params=True)
     r.add_argument("--method", required=True, help="method id (see `pgi methods`)")
     r.add_argument("--time", type=_positive(float), help="render-time budget in seconds")
     r.add_argument("--spp", type=_positive(int), help="stop after this many samples per pixel")
@@ -186,7 +189,9 @@ def build_parser() -> argparse.ArgumentParser:
     ref.add_argument("--spp", type=_positive(int), required=True, help="samples per pixel")
     ref.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     ref.add_argument("--threads", type=_positive(int), help="Mitsuba threads (default: all)")
-    ref.add_argument("-o", "--output", required=True, help="output .exr")
+    ref.add_argument(
+        "-o", "--output", required=True, help="output .exr (a .json sidecar is written)"
+    )
     ref.set_defaults(func=cmd_reference)
 
     c = sub.add_parser("compare", help="error metrics of an image against a reference")

@@ -97,6 +97,11 @@ def render(
         )
     snapshots = sorted(float(s) for s in settings.snapshots)
     budget = settings.time_budget
+    if budget is not None and snapshots and snapshots[-1] > budget:
+        raise PgiError(
+            f"--snapshots {snapshots[-1]:g} lies beyond --time {budget:g}: "
+            "it would never be written"
+        )
     if budget is None and snapshots:
         budget = snapshots[-1]
     method_cls = get_method(settings.method)
@@ -161,6 +166,12 @@ def render(
             label = pending.pop(0)
             write(snapshot_path(out, label), sidecar(render_seconds, label))
     bar.update(render_seconds, method.stats().get("spp", iteration), force=True)
+    if pending:  # --spp was reached first
+        print(
+            f"note: reached --spp {settings.spp} after {render_seconds:.2f} s; snapshot(s) at "
+            f"{', '.join(f'{p:g}' for p in pending)} s not written",
+            file=sys.stderr,
+        )
     final = sidecar(render_seconds, None)
     write(out, final)
     return final

@@ -9,6 +9,7 @@ def report_scene_spec(wildcards):
     return json.dumps(
         {
             "scene": s,
+            "scene_file": scene_file(wildcards),
             "reports": REP,
             "tables": f"{REP}/tables",
             "ref": f"{R}/reference/{s}/ref.exr",
@@ -34,6 +35,7 @@ def report_scene_spec(wildcards):
 rule report_scene:
     input:
         tables=rules.tables.output,
+        scene=scene_file,
         ref=f"{R}/reference/{{scene}}/ref.exr",
         ref_json=f"{R}/reference/{{scene}}/ref.json",
         snapshots=lambda w: [

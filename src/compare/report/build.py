@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+import yaml
 
 from .. import tables as T
 from ..imageio import read_exr, read_json
@@ -96,6 +97,29 @@ def _legend(metric: str, factor: float) -> str:
 # --- scene page -------------------------------------------------------------------------------
 
 
+def _about_scene(scene_file: str | None, best: pd.DataFrame, methods: list[str]) -> str:
+    """What the scene file says it is for, beside the method that actually won."""
+    if not scene_file or not Path(scene_file).is_file():
+        return ""
+    doc = yaml.safe_load(Path(scene_file).read_text()) or {}
+    parts = ["<h2>About this scene</h2>"]
+    if doc.get("description"):
+        parts.append(f"<p>{e(' '.join(str(doc['description']).split()))}</p>")
+    if doc.get("stresses"):
+        parts.append(f"<p><b>Stresses:</b> {e(', '.join(map(str, doc['stresses'])))}.</p>")
+    expected = [str(m) for m in doc.get("expected_winners") or []]
+    if expected:
+        shown = [m if m in methods else f"{m} (not in this study)" for m in expected]
+        parts.append(f"<p><b>Expected to win:</b> {e(', '.join(shown))}.")
+        if not best.empty:
+            last = best.sort_values("budget").iloc[-1]
+            won = str(last.method)
+            verdict = "as expected" if won in expected else "not among the expected"
+            parts.append(f" <b>Won</b> at {e(T.budget_label(last.budget))}: {e(won)} ({verdict}).")
+        parts.append("</p>")
+    return "".join(parts)
+
+
 def build_scene_page(spec: dict[str, Any]) -> None:
     scene = spec["scene"]
     out = Path(spec["reports"])
@@ -125,6 +149,9 @@ def build_scene_page(spec: dict[str, Any]) -> None:
         f'<p class="note">{e(spec["title"])} — study <b>{e(spec["study"])}</b>. '
         f"Images shown are seed {spec['seed']}; tables and plots use every seed.</p>",
     ]
+
+    best = T.best_methods(tabs["summary"], metric)
+    body.append(_about_scene(spec.get("scene_file"), best[best.scene == scene], methods))
 
     # reference quality
     body.append("<h2>Reference</h2>")

@@ -194,6 +194,8 @@ def _merge_includes(main: Path, doc: dict, origins: _Origins) -> dict:
     return merged
 
 
+# Sections of named definitions: an override may replace an entry whole, not edit a missing one.
+_NAMED_TABLES = ("media", "materials")
 _KEY = r"[^.\[\]\s=]+"
 _OVERRIDE_PATH = re.compile(rf"{_KEY}(\[\d+\])*(\.{_KEY}(\[\d+\])*)*")
 
@@ -219,6 +221,12 @@ def _apply_override(doc: dict, text: str, origins: _Origins) -> None:
         if isinstance(node, dict) and isinstance(tok, str):
             if last:
                 node[tok] = value
+            elif n == 1 and tokens[0] in _NAMED_TABLES and tok not in node:
+                known = ", ".join(map(str, node)) or "none"
+                raise PgiError(
+                    f"override {text!r}: the scene has no {tokens[0]} entry {tok!r} "
+                    f"(it has: {known})"
+                )
             else:
                 node = node.setdefault(tok, {})
         elif isinstance(node, list) and isinstance(tok, int) and tok < len(node):
@@ -587,7 +595,11 @@ def _medium(val: _Validator, name: str, d: Any) -> Medium:
         val.mapping(
             d, p, required=("type", "density", "albedo"), optional=common + ("sigma_t", "transform")
         )
-    sigma_t = val.rgb(d.get("sigma_t", 1.0), p + ("sigma_t",))
+    if kind == "grid":  # grid extinction is grey: the density carries the variation
+        grey = val.number(d.get("sigma_t", 1.0), p + ("sigma_t",), lo=0)
+        sigma_t = (grey, grey, grey)
+    else:
+        sigma_t = val.rgb(d["sigma_t"], p + ("sigma_t",))
     albedo = val.rgb(d["albedo"], p + ("albedo",), hi=1)
     scale = val.number(d.get("scale", 1.0), p + ("scale",), lo=0)
     phase = _phase(val, d["phase"], p + ("phase",)) if "phase" in d else Phase()
@@ -753,5 +765,16 @@ def load_scene(path: str | Path, overrides: Sequence[str] = ()) -> Scene:
         materials=materials, media=media, shapes=shapes, lights=lights,
         description=val.string(doc.get("description", ""), ("description",)).strip(),
         stresses=val.strings(doc.get("stresses", []), ("stresses",)),
-        expected_winners=val.strings(doc.get("expected_winners", []), ("expected_winners",)),
+        expected_winners=_method_names(val, doc.get("expected_winners", []), ("expected_winners",)),
     )  # fmt: skip
+
+
+def _method_names(val: _Validator, v: Any, p: KeyPath) -> list[str]:
+    """Method ids, implemented or from the study's table of methods still to come."""
+    from renderer.methods import NOT_YET_IMPLEMENTED, method_ids
+
+    known = method_ids() + list(NOT_YET_IMPLEMENTED)
+    names = val.strings(v, p)
+    for i, name in enumerate(names):
+        val.string(name, p + (i,), known)
+    return names
