@@ -309,6 +309,29 @@ inline bool roulette_transmittance(double &tr, Sampler &rng) {
     return false;
 }
 
+// Ratio tracking (Cramer 1978; Novak et al. 2014, sec. 4.1) over [0, tmax) in a
+// grid: returns the transmittance estimate. on_step(t, tr) sees the running
+// product after each tentative collision at t, itself an unbiased estimate of
+// Tr(0, t) (the roulette keeps every prefix unbiased).
+template <typename OnStep>
+double ratio_track(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax, Sampler &rng, MediumStats &stats,
+                   OnStep &&on_step) {
+    double tr = 1;
+    traverse_majorants(m, o, d, tmax, [&](double t0, double t1, double maj) {
+        if (maj <= 0) return true;
+        double t = t0;
+        while (true) {
+            t -= std::log1p(-rng.next()) / maj;
+            if (t >= t1) return true;
+            tr *= 1 - grid_sigma_t(m, o + d * t, stats) / maj;
+            bool go_on = roulette_transmittance(tr, rng);
+            on_step(t, tr);
+            if (!go_on) return false;
+        }
+    });
+    return tr;
+}
+
 // Transmittance over [0, tmax): closed form in homogeneous media, the medium's
 // estimator in grids.
 inline RGB transmittance(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax, Sampler &rng,
@@ -347,17 +370,7 @@ inline RGB transmittance(const Medium &m, const Vec3 &o, const Vec3 &d, double t
             });
             return RGB(tr);
         default:
-            traverse_majorants(m, o, d, tmax, [&](double t0, double t1, double maj) {
-                if (maj <= 0) return true;
-                double t = t0;
-                while (true) {
-                    t -= std::log1p(-rng.next()) / maj;
-                    if (t >= t1) return true;
-                    tr *= 1 - grid_sigma_t(m, o + d * t, stats) / maj;
-                    if (!roulette_transmittance(tr, rng)) return false;
-                }
-            });
-            return RGB(tr);
+            return RGB(ratio_track(m, o, d, tmax, rng, stats, [](double, double) {}));
     }
 }
 

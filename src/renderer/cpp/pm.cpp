@@ -6,35 +6,21 @@ namespace pgi {
 constexpr int kMaxGatherNullCrossings = 256;
 // Specular bounces followed when max_depth is unlimited.
 constexpr int kMaxSpecularBounces = 64;
-// A surface photon counts at x only if its surface faces about the same way
-// (cos > 0.5): photons on a perpendicular wall near a corner are another surface.
-constexpr double kNormalAgreement = 0.5;
 constexpr uint64_t kGatherStreamTag = 0x4761746865725061ull;
 
 namespace {
 
 // Transmittance from the camera-path vertex to many distances along one ray:
 // closed form in homogeneous media; in density grids one ratio-tracking walk
-// (Novak et al. 2014) whose running product up to t estimates Tr(0, t) without
-// bias for every t at once.
+// whose running product up to t estimates Tr(0, t) without bias for every t at once.
 class TransmittanceTrack {
 public:
     TransmittanceTrack(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax, Sampler &rng,
                        MediumStats &stats)
         : medium_(m) {
         if (m.type == MediumType::Homogeneous) return;
-        double tr = 1;
-        traverse_majorants(m, o, d, tmax, [&](double t0, double t1, double maj) {
-            if (maj <= 0) return true;
-            double t = t0;
-            while (true) {
-                t -= std::log1p(-rng.next()) / maj;
-                if (t >= t1) return true;
-                tr *= 1 - grid_sigma_t(m, o + d * t, stats) / maj;
-                steps_.push_back({t, tr});
-                if (tr == 0) return false;
-            }
-        });
+        ++stats.segments;
+        ratio_track(m, o, d, tmax, rng, stats, [&](double t, double tr) { steps_.push_back({t, tr}); });
     }
     RGB at(double t) const {
         if (medium_.type == MediumType::Homogeneous) return beer_lambert(medium_.sigma_t, t);
@@ -91,10 +77,9 @@ size_t PhotonGatherer::begin_camera(int64_t iteration, const RayBuffers &out) {
 
 // Beam radiance estimate along [0, t_hit] (Jarosz et al. 2008): every volume photon
 // of this medium whose disc crosses the segment, attenuated to the camera-path vertex.
-RGB PhotonGatherer::beam_estimate(const GatherPath &p, double t_hit, double radius, MediumStats &ms,
-                                  uint64_t &accepted) const {
+RGB PhotonGatherer::beam_estimate(const GatherPath &p, double t_hit, double radius, Sampler rng,
+                                  MediumStats &ms, uint64_t &accepted) const {
     const Medium &m = scene_->media[p.medium];
-    Sampler rng = p.rng.split(0x6265616d + uint64_t(p.specular));
     double tmax = std::isfinite(t_hit) ? t_hit : 1e30;
     TransmittanceTrack track(m, p.pos, p.dir, tmax, rng, ms);
     RGB sum(0.0);
@@ -113,22 +98,14 @@ RGB PhotonGatherer::beam_estimate(const GatherPath &p, double t_hit, double radi
 // Surface density estimate at x (Jensen 1996) with a constant kernel 1 / (pi r^2).
 RGB PhotonGatherer::surface_estimate(const GatherPath &p, int tri, const Vec3 &x, double radius,
                                      uint64_t &accepted) const {
-    const Scene &scene = *scene_;
-    const Triangle &T = scene.triangles[tri];
-    const Material &mat = scene.materials[T.material];
-    Vec3 wo = -p.dir;
-    if (dot(wo, T.n) <= 0) return RGB(0.0);  // back of a one-sided surface
-    RGB sum(0.0);
-    surface_tree_.query_sphere(x, radius, [&](uint32_t i, double) {
-        const LightVertex &ph = surface_photons_[i];
-        if (max_depth_ >= 0 && ph.depth + p.specular >= max_depth_) return;
-        if (dot(scene.triangles[ph.triangle].n, T.n) < kNormalAgreement) return;
-        if (dot(ph.wi, T.n) <= 0) return;
-        ++accepted;
-        sum += ph.power;
-    });
-    // Diffuse f = reflectance / pi (the only non-delta BSDF).
-    return mat.reflectance * sum * (kInvPi / (kPi * radius * radius) * inv_light_paths_);
+    RGB reflected = reflected_photon_power(*scene_, surface_tree_, surface_photons_, tri, x, -p.dir, radius,
+                                           [&](const LightVertex &ph) {
+                                               if (max_depth_ >= 0 && ph.depth + p.specular >= max_depth_)
+                                                   return false;
+                                               ++accepted;
+                                               return true;
+                                           });
+    return reflected * (inv_light_paths_ / (kPi * radius * radius));
 }
 
 void PhotonGatherer::shade(const Hits &hits, double surface_radius, double volume_radius) {
@@ -144,9 +121,12 @@ void PhotonGatherer::shade(const Hits &hits, double surface_radius, double volum
         if (p.medium >= 0) {
             MediumStats local;
             const Medium &m = scene.media[p.medium];
-            p.radiance += p.throughput * beam_estimate(p, t_hit, volume_radius, local, volume_accepted);
+            // Each medium segment gets fresh streams: segments split by null surfaces
+            // would otherwise share their random numbers and correlate their estimates.
+            p.radiance += p.throughput * beam_estimate(p, t_hit, volume_radius, p.rng.fork(), local,
+                                                       volume_accepted);
             if (tri >= 0) {
-                Sampler rng = p.rng.split(0x7472 + uint64_t(p.specular));
+                Sampler rng = p.rng.fork();
                 p.throughput *= transmittance(m, p.pos, p.dir, t_hit, rng, local);
             }
             lookups += local.density_lookups;

@@ -37,6 +37,7 @@
 #include "camera_path.h"  // camera samples and wave bookkeeping shared with pt and ppb
 #include "lightpath.h"
 #include "photon_map.h"
+#include "surface_photons.h"
 
 namespace pgi {
 
@@ -78,7 +79,8 @@ public:
     uint64_t density_lookups() const { return medium_stats_.density_lookups; }
 
 private:
-    RGB beam_estimate(const GatherPath &p, double t_hit, double radius, MediumStats &ms, uint64_t &accepted) const;
+    RGB beam_estimate(const GatherPath &p, double t_hit, double radius, Sampler rng, MediumStats &ms,
+                      uint64_t &accepted) const;
     RGB surface_estimate(const GatherPath &p, int tri, const Vec3 &x, double radius, uint64_t &accepted) const;
 
     std::shared_ptr<const Scene> scene_;

@@ -152,19 +152,12 @@ size_t PhotonBeams::shade(const Hits &hits) {
 // Radiance leaving diffuse triangle `tri` at x towards -p.dir from the photons
 // within the surface radius; p.depth already counts the event at x.
 RGB PhotonBeams::gather_photons(const BeamGatherPath &p, int tri, const Vec3 &x) const {
-    RGB sum(0.0);
-    const Triangle &T = scene_->triangles[tri];
-    const Material &mat = scene_->materials[T.material];
-    if (dot(-p.dir, T.n) <= 0) return sum;  // one-sided
-    photon_tree_.query_sphere(x, photon_radius_, [&](size_t i, double) {
-        const LightVertex &v = photons_[i];
-        // The photon's vertex is x itself: v.depth + (p.depth - 1) events in all.
-        if (max_depth_ >= 0 && v.depth + p.depth - 1 >= max_depth_) return;
-        // Same surface orientation (photons across a corner or a thin wall belong elsewhere).
-        if (dot(scene_->triangles[v.triangle].n, T.n) < 0.9 || dot(v.wi, T.n) <= 0) return;
-        sum += v.power;
-    });
-    return sum * mat.reflectance * (kInvPi * photon_scale_);
+    // The photon's vertex is x itself: v.depth + (p.depth - 1) events in all.
+    RGB reflected = reflected_photon_power(*scene_, photon_tree_, photons_, tri, x, -p.dir, photon_radius_,
+                                           [&](const LightVertex &v) {
+                                               return max_depth_ < 0 || v.depth + p.depth - 1 < max_depth_;
+                                           });
+    return reflected * photon_scale_;
 }
 
 void PhotonBeams::scatter_on_surface(BeamGatherPath &p, size_t slot, int tri, const Vec3 &x) {

@@ -45,6 +45,7 @@
 #include "beams.h"
 #include "lightpath.h"
 #include "photon_map.h"
+#include "surface_photons.h"
 #include "radius_schedule.h"
 #include "camera_path.h"
 

@@ -29,8 +29,11 @@ struct Sampler {
         uint64_t h = mix64(key + 0x632be59bd9b4e019ull * uint64_t(++dim));
         return double(h >> 11) * 0x1.0p-53;
     }
-    // A child stream, e.g. for a shadow ray, independent of this one.
+    // A child stream, e.g. for a shadow ray, independent of this one. The same tag
+    // gives the same child: tag by something that differs between uses.
     Sampler split(uint64_t tag) const { return Sampler(mix64(key ^ mix64(tag + 0x8cb92ba72f3d8dd7ull))); }
+    // A new child stream at each call: it uses up one dimension of this stream.
+    Sampler fork() { return split(0x466f726b00000000ull + uint64_t(++dim)); }
 };
 
 }  // namespace pgi

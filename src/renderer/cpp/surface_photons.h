@@ -1,0 +1,38 @@
+// Surface density estimation (Jensen 1996), shared by pm / sppm and ppb: the
+// photons near a diffuse surface point that belong to that surface.
+#pragma once
+
+#include <vector>
+
+#include "lightpath.h"
+#include "photon_map.h"
+
+namespace pgi {
+
+// A photon counts at x only if its surface faces about the same way (cos > 0.5):
+// photons on a perpendicular wall near a corner, or across a thin wall, are
+// another surface's.
+constexpr double kPhotonNormalAgreement = 0.5;
+
+// Sum of the powers of the photons within `radius` of x on diffuse triangle `tri`
+// that lie on a surface facing the same way and arrived from its front, times
+// the diffuse BSDF (reflectance / pi); the caller divides by the kernel's area.
+// `counts(photon)` applies the method's own depth rule. Zero when wo (towards
+// the viewer) is behind the one-sided surface.
+template <typename Counts>
+RGB reflected_photon_power(const Scene &scene, const PointTree &tree, const std::vector<LightVertex> &photons,
+                           int tri, const Vec3 &x, const Vec3 &wo, double radius, Counts &&counts) {
+    const Triangle &T = scene.triangles[tri];
+    RGB sum(0.0);
+    if (dot(wo, T.n) <= 0) return sum;
+    tree.query_sphere(x, radius, [&](size_t i, double) {
+        const LightVertex &ph = photons[i];
+        if (dot(scene.triangles[ph.triangle].n, T.n) < kPhotonNormalAgreement) return;
+        if (dot(ph.wi, T.n) <= 0) return;
+        if (!counts(ph)) return;
+        sum += ph.power;
+    });
+    return sum * scene.materials[T.material].reflectance * kInvPi;
+}
+
+}  // namespace pgi
