@@ -183,22 +183,31 @@ inline double grid_sigma_t(const Medium &m, const Vec3 &p, MediumStats &stats) {
     return m.grid_sigma * m.grid.density_local(m.grid.to_local(p));
 }
 
-// Delta tracking over [0, tmax) against the per-cell majorants: the distance of
-// the first real collision, or infinity.
-inline double delta_track(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax, Sampler &rng,
-                          MediumStats &stats) {
-    double hit = kInf;
+// Tentative collisions over [0, tmax): exponential steps at each cell's majorant
+// rate. visit(t, maj) returns false to stop.
+template <typename Visit>
+void tentative_collisions(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax, Sampler &rng,
+                          Visit &&visit) {
     traverse_majorants(m, o, d, tmax, [&](double t0, double t1, double maj) {
         if (maj <= 0) return true;
         double t = t0;
         while (true) {
             t -= std::log1p(-rng.next()) / maj;
             if (t >= t1) return true;
-            if (rng.next() * maj < grid_sigma_t(m, o + d * t, stats)) {
-                hit = t;
-                return false;
-            }
+            if (!visit(t, maj)) return false;
         }
+    });
+}
+
+// Delta tracking over [0, tmax) against the per-cell majorants: the distance of
+// the first real collision, or infinity.
+inline double delta_track(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax, Sampler &rng,
+                          MediumStats &stats) {
+    double hit = kInf;
+    tentative_collisions(m, o, d, tmax, rng, [&](double t, double maj) {
+        if (rng.next() * maj >= grid_sigma_t(m, o + d * t, stats)) return true;  // null collision
+        hit = t;
+        return false;
     });
     return hit;
 }
@@ -317,17 +326,11 @@ template <typename OnStep>
 double ratio_track(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax, Sampler &rng, MediumStats &stats,
                    OnStep &&on_step) {
     double tr = 1;
-    traverse_majorants(m, o, d, tmax, [&](double t0, double t1, double maj) {
-        if (maj <= 0) return true;
-        double t = t0;
-        while (true) {
-            t -= std::log1p(-rng.next()) / maj;
-            if (t >= t1) return true;
-            tr *= 1 - grid_sigma_t(m, o + d * t, stats) / maj;
-            bool go_on = roulette_transmittance(tr, rng);
-            on_step(t, tr);
-            if (!go_on) return false;
-        }
+    tentative_collisions(m, o, d, tmax, rng, [&](double t, double maj) {
+        tr *= 1 - grid_sigma_t(m, o + d * t, stats) / maj;
+        bool go_on = roulette_transmittance(tr, rng);
+        on_step(t, tr);
+        return go_on;
     });
     return tr;
 }
