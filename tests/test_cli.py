@@ -156,6 +156,19 @@ def test_bad_scene_gives_one_line_error_and_no_output(tmp_path, kind):
         ),
         (["compare", "missing-a.exr", "missing-b.exr"], "missing-a.exr"),
         (["validate", "cbox", "--set", "method.radius=1"], "apply to `pgi render` only"),
+        (["render", "cbox", "--method", "pt", "--time", "nan", "-o", "x.exr"], "finite"),
+        (["render", "cbox", "--method", "pt", "--spp", "1", "--seed", "-1", "-o", "x.exr"], "2^63"),
+        (["compare", "a.png", "b.exr"], "expected a linear .exr image"),
+        (
+            ["render", "cbox", "--method", "pt", "--spp", "1", "-o", "x.exr"]
+            + ["--set", "shapes[7].transform=[{scale: 1.0e-9}]"],
+            "every triangle of this emitter is degenerate",
+        ),
+        (
+            ["render", "cbox-grid", "--method", "pt", "--spp", "1", "-o", "x.exr"]
+            + ["--set", "integrator.estimator=raymarch", "--set", "integrator.march_step=1e-9"],
+            "integrator.march_step: 1e-09 is below",
+        ),
         (
             ["render", "cbox", "--method", "pt", "--time", "1", "--snapshots", "1,2"]
             + ["-o", "x.exr"],
@@ -186,3 +199,12 @@ def test_compare_reports_metrics_as_json(tmp_path):
     metrics = json.loads(r.stdout)
     assert metrics["mse"] == pytest.approx(np.mean((0.1 * ref.astype(np.float64)) ** 2), rel=1e-5)
     assert {"rmse", "relmse", "relmse_trimmed", "mape", "smape"} <= set(metrics)
+
+
+def test_unwritable_outputs_are_refused_before_rendering(tmp_path):
+    (tmp_path / "out" / "a.json").mkdir(parents=True)  # the sidecar's path is taken
+    (tmp_path / "dir.exr").mkdir()
+    for target, expected in (("out/a.exr", "a.json is a directory"), ("dir.exr", "is a directory")):
+        r = pgi("render", "cbox", "--method", "pt", "--spp", "1", "-o", target, cwd=tmp_path)
+        assert r.returncode == 2 and expected in r.stderr and "Traceback" not in r.stderr
+    assert sorted(p.name for p in tmp_path.rglob("*")) == ["a.json", "dir.exr", "out"]

@@ -112,7 +112,9 @@ def test_unknown_key(tmp_path):
 def test_wrong_type(tmp_path):
     doc = edit()
     doc["film"]["width"] = "wide"
-    expect_error(write(tmp_path, doc), "film.width", "expected an integer >= 1, got 'wide'")
+    expect_error(
+        write(tmp_path, doc), "film.width", "expected an integer >= 1 and <= 16384, got 'wide'"
+    )
     doc = edit()
     doc["camera"]["origin"] = [0, 0]
     expect_error(write(tmp_path, doc), "camera.origin", "list of 3 numbers")
@@ -358,3 +360,43 @@ def test_transform_ops(tmp_path):
     assert np.allclose(floor.vertices[2], [0, 4, 3])
     doc["shapes"][0]["transform"] = [{"shear": 1}]
     expect_error(write(tmp_path, doc), "shapes[0].transform[0].shear", "unknown transform op")
+
+
+def test_values_beyond_float32_and_size_limits_are_errors(tmp_path):
+    path = write(tmp_path, BASE)
+    expect_error(path, "shapes[1].emission", "<= 1e\\+30", ["shapes[1].emission=1.0e+39"])
+    expect_error(path, "shapes[0].transform", "beyond", ["shapes[0].transform=[{scale: 1.0e+300}]"])
+    expect_error(path, "film.width", "<= 16384", ["film.width=100000"])
+    d = np.full((2, 2, 2), 1e39)  # finite in float64, inf in float32
+    expect_error(grid_scene(tmp_path, d), "media.smoke.density", "float32 range")
+
+
+def test_exponents_without_a_dot_are_numbers(tmp_path):
+    # YAML 1.1 reads 1e-3 as a string; scene files and overrides read it as a number
+    path = write(tmp_path, BASE.copy() | {"film": {"width": 8, "height": 6}})
+    fog = "media.fog={type: homogeneous, sigma_t: 1e-3, albedo: 5E-1}"
+    m = load_scene(path, [fog]).media["fog"]
+    assert m.sigma_t == (1e-3,) * 3 and m.albedo == (0.5,) * 3
+
+
+def test_unreadable_files_are_one_line_errors(tmp_path):
+    (tmp_path / "latin1.yaml").write_bytes('description: "Lumi\xe8re"\n'.encode("latin-1"))
+    with pytest.raises(PgiError, match="not a UTF-8 text file"):
+        load_scene(tmp_path / "latin1.yaml")
+    (tmp_path / "d.npy").write_text("not numpy\n")
+    doc = edit(media={"smoke": {"type": "grid", "density": "d.npy", "albedo": 0.5}})
+    expect_error(write(tmp_path, doc), "media.smoke.density", "not a numpy .npy file")
+    msg = expect_error(grid_scene(tmp_path, np.ones((4, 4))), "media.smoke.density", "3-D")
+    assert "shape [4, 4] of float64" in msg
+
+
+def test_a_broken_included_section_is_not_hidden(tmp_path):
+    write(tmp_path, {"materials": [1, 2]}, "common.yaml")
+    doc = edit(include="common.yaml")
+    with pytest.raises(PgiError, match=r"common\.yaml: materials: expected a mapping"):
+        load_scene(write(tmp_path, doc))
+
+
+def test_lights_that_emit_nothing_do_not_count(tmp_path):
+    path = write(tmp_path, BASE)
+    expect_error(path, "lights", "no light that emits", ["shapes[1].emission=0"])

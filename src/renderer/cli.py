@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
+
+import yaml
 
 from . import __version__
 from .errors import PgiError
@@ -18,8 +21,8 @@ def _floats(text: str) -> list[float]:
         raise argparse.ArgumentTypeError(
             f"expected comma-separated seconds, got {text!r}"
         ) from None
-    if not values or any(v <= 0 for v in values):
-        raise argparse.ArgumentTypeError(f"expected positive seconds, got {text!r}")
+    if not values or not all(0 < v < math.inf for v in values):
+        raise argparse.ArgumentTypeError(f"expected positive, finite seconds, got {text!r}")
     return values
 
 
@@ -29,11 +32,21 @@ def _positive(kind: type):
             value = kind(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-        if value <= 0:
-            raise argparse.ArgumentTypeError(f"expected a positive value, got {text!r}")
+        if not 0 < value < math.inf:
+            raise argparse.ArgumentTypeError(f"expected a positive, finite value, got {text!r}")
         return value
 
     return parse
+
+
+def _seed(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if not 0 <= value < 2**63:
+        raise argparse.ArgumentTypeError(f"expected an integer in [0, 2^63), got {text!r}")
+    return value
 
 
 def _split_sets(items: list[str], command: str = "render") -> tuple[list[str], dict]:
@@ -46,19 +59,21 @@ def _split_sets(items: list[str], command: str = "render") -> tuple[list[str], d
         if key.startswith("method.") and command != "render":
             raise PgiError(f"--set {item!r}: method parameters apply to `pgi render` only")
         if key.startswith("method."):
-            import yaml
+            from .scene.loader import parse_yaml_value
 
-            params[key[len("method.") :]] = yaml.safe_load(value)
+            try:
+                params[key[len("method.") :]] = parse_yaml_value(value)
+            except yaml.YAMLError:
+                raise PgiError(f"--set {item!r}: the value is not valid YAML") from None
         else:
             overrides.append(item)
     return overrides, params
 
 
 def _output(path: str) -> Path:
-    out = Path(path)
-    if out.suffix.lower() != ".exr":
-        raise PgiError(f"-o {path}: the output must be an .exr file")
-    return out
+    from .imageio import check_output_path
+
+    return check_output_path(path)
 
 
 def cmd_render(args: argparse.Namespace) -> int:
@@ -88,7 +103,7 @@ def cmd_render(args: argparse.Namespace) -> int:
 
 
 def cmd_reference(args: argparse.Namespace) -> int:
-    from .imageio import write_exr, write_json
+    from .imageio import write_image_and_sidecar
     from .reference import render_reference
     from .scene import load_scene
 
@@ -104,8 +119,7 @@ def cmd_reference(args: argparse.Namespace) -> int:
         seed=args.seed,
         overrides=overrides,
     )
-    write_exr(out, image, info)
-    write_json(out.with_suffix(".json"), info)
+    write_image_and_sidecar(out, image, info)
     print(f"{out}: Mitsuba reference, {args.spp} spp")
     return 0
 
@@ -115,6 +129,9 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
     from .imageio import read_exr
 
+    for path in (args.test, args.reference):
+        if Path(path).suffix.lower() != ".exr":  # metrics are defined on linear HDR values
+            raise PgiError(f"{path}: expected a linear .exr image")
     test, ref = read_exr(args.test), read_exr(args.reference)
     try:
         metrics = compare_images(test, ref)
@@ -174,7 +191,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--time", type=_positive(float), help="render-time budget in seconds")
     r.add_argument("--spp", type=_positive(int), help="stop after this many samples per pixel")
     r.add_argument("--threads", type=_positive(int), default=1, help="worker threads (default 1)")
-    r.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    r.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
     r.add_argument(
         "--snapshots",
         type=_floats,
@@ -187,7 +204,7 @@ def build_parser() -> argparse.ArgumentParser:
     ref = sub.add_parser("reference", help="render the Mitsuba 3 reference of a scene")
     scene_arg(ref)
     ref.add_argument("--spp", type=_positive(int), required=True, help="samples per pixel")
-    ref.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    ref.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
     ref.add_argument("--threads", type=_positive(int), help="Mitsuba threads (default: all)")
     ref.add_argument(
         "-o", "--output", required=True, help="output .exr (a .json sidecar is written)"
@@ -216,6 +233,13 @@ def main(argv: list[str] | None = None) -> int:
         return args.func(args)
     except PgiError as e:
         print(f"pgi: error: {e}", file=sys.stderr)
+        return 2
+    except MemoryError:
+        print(
+            "pgi: error: out of memory (a smaller film, fewer samples per iteration or fewer "
+            "photons/beams would fit)",
+            file=sys.stderr,
+        )
         return 2
     except KeyboardInterrupt:
         print("pgi: interrupted", file=sys.stderr)

@@ -21,6 +21,8 @@ MAJORANT_CELL = 4
 # Triangles with less area than this fraction of the scene's squared size are
 # dropped: they have no normal, and no light can hit them.
 _DEGENERATE_AREA = 1e-14
+# Ray-marching steps shorter than this fraction of a voxel refine nothing and cost hours.
+_MIN_MARCH_STEP = 1e-3
 
 
 @dataclass
@@ -59,13 +61,21 @@ def camera_basis(camera: Camera, film: Film) -> tuple[np.ndarray, np.ndarray, np
     return forward, -left * tan_x, up * tan_y
 
 
-def march_step(medium: Medium, integrator_step: float) -> float:
+def march_step(medium: Medium, integrator_step: float, where: str = "the scene") -> float:
     """Ray-marching step in world units: the scene's, or half the grid's smallest voxel."""
-    if integrator_step > 0:
-        return integrator_step
     assert medium.density is not None and medium.to_world is not None
-    voxel = np.linalg.norm(medium.to_world[:3, :3], axis=0) / np.array(medium.density.shape)
-    return 0.5 * float(voxel.min())
+    voxel = float(
+        (np.linalg.norm(medium.to_world[:3, :3], axis=0) / np.array(medium.density.shape)).min()
+    )
+    if integrator_step <= 0:
+        return 0.5 * voxel
+    if integrator_step < _MIN_MARCH_STEP * voxel:
+        raise PgiError(
+            f"{where}: integrator.march_step: {integrator_step:g} is below "
+            f"{_MIN_MARCH_STEP:g} of medium {medium.name}'s smallest voxel ({voxel:g}): "
+            "ray marching would take hours"
+        )
+    return integrator_step
 
 
 def _add_medium(core: _core.Scene, m: Medium, scene: Scene, majorant_cell: int) -> int:
@@ -87,7 +97,7 @@ def _add_medium(core: _core.Scene, m: Medium, scene: Scene, majorant_cell: int) 
             majorant_cell,
         )
         estimator = scene.integrator.estimator
-        step = march_step(m, scene.integrator.march_step)
+        step = march_step(m, scene.integrator.march_step, str(scene.path))
         _core.configure_medium(core, medium_id, _ESTIMATORS[estimator], step)
     if m.phase.type == "tabulated":
         _core.set_phase_table(core, medium_id, np.ascontiguousarray(m.phase.values, np.float64))
@@ -139,6 +149,12 @@ def build_native_scene(scene: Scene, majorant_cell: int = MAJORANT_CELL) -> Nati
     for index, shape in enumerate(scene.shapes):
         if shape.emission is not None:
             members = np.flatnonzero(owner == index).astype(np.int32)
+            if len(members) == 0:
+                raise PgiError(
+                    f"{scene.path}: shapes[{index}] ({shape.name}): every triangle of this "
+                    f"emitter is degenerate (area below {_DEGENERATE_AREA:g} of the scene's "
+                    "squared size): it would emit nothing"
+                )
             emitter[members] = core.add_area_light(tuple(map(float, shape.emission)), members)
     core.set_triangles(triangles, mats, emitter, inside, outside, transition)
 

@@ -44,7 +44,10 @@ def write_exr(path: str | Path, image: np.ndarray, metadata: dict | None = None)
         raise ValueError(f"expected an (H, W, 3) image, got shape {image.shape}")
     if not np.all(np.isfinite(image)):
         raise ValueError(f"refusing to write non-finite pixels to {path}")
-    path.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise PgiError(f"{path}: cannot create its folder: {e.strerror or e}") from None
     spec = oiio.ImageSpec(image.shape[1], image.shape[0], 3, oiio.FLOAT)
     spec.channelnames = ("R", "G", "B")
     spec.attribute("compression", "zip")
@@ -68,5 +71,41 @@ def write_json(path: str | Path, data: dict) -> None:
     """Write a JSON sidecar atomically."""
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    tmp.write_text(json.dumps(data, indent=2, sort_keys=True, default=str) + "\n")
-    os.replace(tmp, path)
+    try:
+        tmp.write_text(json.dumps(data, indent=2, sort_keys=True, default=str) + "\n")
+        os.replace(tmp, path)
+    except OSError as e:
+        raise PgiError(f"{path}: cannot write: {e.strerror or e}") from None
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def write_image_and_sidecar(path: str | Path, image: np.ndarray, info: dict) -> None:
+    """The EXR (``info`` in its header) and its JSON sidecar: both or neither."""
+    path = Path(path)
+    write_exr(path, image, info)
+    try:
+        write_json(path.with_suffix(".json"), info)
+    except BaseException:
+        path.unlink(missing_ok=True)
+        raise
+
+
+def check_output_path(path: str | Path) -> Path:
+    """An .exr path whose image and sidecar can be written: checked before any work, and
+    without creating anything."""
+    out = Path(path)
+    if out.suffix.lower() != ".exr":
+        raise PgiError(f"-o {path}: the output must be an .exr file")
+    for target in (out, out.with_suffix(".json")):
+        if target.is_dir():
+            raise PgiError(f"-o {path}: {target} is a directory")
+    parent = out.parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if not parent.is_dir():
+        raise PgiError(f"-o {path}: {parent} is not a directory")
+    if not os.access(parent, os.W_OK):
+        raise PgiError(f"-o {path}: cannot write in {parent}")
+    return out

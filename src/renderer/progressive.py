@@ -20,7 +20,7 @@ import numpy as np
 
 from . import __version__
 from .errors import PgiError
-from .imageio import write_exr, write_json
+from .imageio import write_image_and_sidecar
 from .methods import get_method
 from .scene.model import Scene
 
@@ -142,8 +142,7 @@ def render(
         image = method.image()
         if not np.all(np.isfinite(image)):  # the film drops non-finite samples; this is a bug guard
             raise RuntimeError(f"{settings.method} produced non-finite pixels")
-        write_exr(path, image, info)
-        write_json(path.with_suffix(".json"), info)
+        write_image_and_sidecar(path, image, info)
         if on_snapshot:
             on_snapshot(path, info)
 

@@ -26,6 +26,10 @@ from renderer.errors import PgiError
 # --------------------------------------------------------------------------- OpenVDB
 
 
+# Voxels per axis of any baked grid (1024^3 float32 is 4 GiB).
+MAX_GRID_SIDE = 1024
+
+
 def unit_cube_to_index(lo: np.ndarray, shape: np.ndarray) -> np.ndarray:
     """4x4 map from the unit cube to OpenVDB index space for a dense copy of voxels
     lo .. lo + shape - 1 (OpenVDB voxel centres sit at integer index coordinates)."""
@@ -65,6 +69,11 @@ def read_vdb(
     shape = hi - lo + 1
     if np.any(shape <= 0):
         raise PgiError(f"{path}: empty bounding box {lo.tolist()} .. {hi.tolist()}")
+    if np.any(shape > MAX_GRID_SIDE):
+        raise PgiError(
+            f"{path}: bounding box {lo.tolist()} .. {hi.tolist()} is {shape.tolist()} voxels; "
+            f"at most {MAX_GRID_SIDE} per axis"
+        )
     dense = np.zeros(tuple(int(s) for s in shape), np.float32)
     grid.copyToArray(dense, ijk=tuple(int(i) for i in lo))
     if not grid.transform.isLinear:

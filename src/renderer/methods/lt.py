@@ -15,24 +15,17 @@ import numpy as np
 
 from .. import _core
 from ..engine import build_native_scene
-from ..errors import PgiError
 from ..passes import resolve_shadow_rays
 from ..scene.model import Scene
 from ..tracer import EmbreeTracer, RayBatch
 from .lightpath import LightPaths
+from .params import MethodParams
 
 _DEFAULT_PATHS = 1 << 16
 # Vertices one iteration may record: the memory bound. Each costs about 270 bytes with its
 # connection ray and splat, so the default bounds an iteration at about 2.3 GB.
 _DEFAULT_MAX_RECORDS = 1 << 23
 _PARAMS = {"light_paths", "max_records"}
-
-
-def check_params(method: str, params: dict, known: set[str]) -> None:
-    unknown = set(params) - known
-    if unknown:
-        names = ", ".join(sorted(known))
-        raise PgiError(f"method {method}: unknown parameter(s) {sorted(unknown)}; known: {names}")
 
 
 class LightTracing:
@@ -42,10 +35,9 @@ class LightTracing:
     def __init__(
         self, scene: Scene, *, seed: int, threads: int, params: dict, spp_budget: int | None = None
     ) -> None:
-        check_params(self.id, params, _PARAMS)
-        paths = int(params.get("light_paths", _DEFAULT_PATHS))
-        if paths <= 0:
-            raise PgiError("method lt: light_paths must be positive")
+        p = MethodParams(self.id, params, _PARAMS)
+        paths = p.integer("light_paths", _DEFAULT_PATHS, lo=1)
+        max_records = p.integer("max_records", _DEFAULT_MAX_RECORDS, lo=1)
         self.native = build_native_scene(scene)
         self.tracer = EmbreeTracer(self.native.triangles, threads)
         self.light_paths = LightPaths(
@@ -55,7 +47,7 @@ class LightTracing:
             seed=seed,
             threads=threads,
             paths=paths,
-            max_records=int(params.get("max_records", _DEFAULT_MAX_RECORDS)),
+            max_records=max_records,
             segments=False,
         )
         self.kernel = _core.LightTracer(self.native.core, seed, threads)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from renderer.errors import PgiError
+from renderer.methods.params import MethodParams
 from renderer.mitsuba_env import import_mitsuba, set_threads
 from renderer.reference import derive_seed
 from renderer.scene.mitsuba_export import load_mitsuba_scene
@@ -36,16 +36,8 @@ class MitsubaVolpath:
     def __init__(
         self, scene: Scene, *, seed: int, threads: int, params: dict, spp_budget: int | None = None
     ) -> None:
-        unknown = set(params) - {"spp_per_iteration"}
-        if unknown:
-            raise PgiError(
-                f"method mitsuba: unknown parameter(s) {sorted(unknown)}; known: spp_per_iteration"
-            )
-        spp = params.get("spp_per_iteration", default_spp(scene, spp_budget))
-        if not isinstance(spp, int) or isinstance(spp, bool) or spp < 1:
-            raise PgiError(
-                f"method mitsuba: spp_per_iteration must be an integer >= 1, got {spp!r}"
-            )
+        p = MethodParams(self.id, params, {"spp_per_iteration"})
+        spp = p.integer("spp_per_iteration", default_spp(scene, spp_budget), lo=1)
         self.mi = import_mitsuba()
         set_threads(threads)
         self.scene = load_mitsuba_scene(scene)

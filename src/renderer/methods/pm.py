@@ -21,7 +21,7 @@ from ..errors import PgiError
 from ..scene.model import Scene
 from ..tracer import EmbreeTracer, RayBatch
 from .lightpath import LightPaths
-from .lt import check_params
+from .params import MethodParams
 
 DEFAULT_PHOTONS = 1 << 16
 # Vertices one iteration may record: the memory bound. Each costs about 200 bytes (the record,
@@ -52,23 +52,20 @@ class PhotonMapping:
     def __init__(
         self, scene: Scene, *, seed: int, threads: int, params: dict, spp_budget: int | None = None
     ) -> None:
-        check_params(self.id, params, self._known)
+        p = MethodParams(self.id, params, self._known)
+        photons = p.integer("photons", DEFAULT_PHOTONS, lo=1)
+        spp = p.integer("spp_per_iteration", 1, lo=1)
+        max_records = p.integer("max_records", DEFAULT_MAX_RECORDS, lo=1)
+        scale = p.number("radius_scale", DEFAULT_RADIUS_SCALE, lo=0, lo_open=True)
         self.native = build_native_scene(scene)
         self.tracer = EmbreeTracer(self.native.triangles, threads)
-        photons = int(params.get("photons", DEFAULT_PHOTONS))
-        spp = int(params.get("spp_per_iteration", 1))
-        if photons <= 0 or spp <= 0:
-            raise PgiError(f"method {self.id}: photons and spp_per_iteration must be positive")
         if spp_budget and spp_budget % spp:
             raise PgiError(
                 f"method {self.id}: spp_per_iteration {spp} must divide the spp budget {spp_budget}"
             )
-        scale = float(params.get("radius_scale", DEFAULT_RADIUS_SCALE))
         size = scene_radius(self.native.triangles)
-        self.radius = float(params.get("radius", scale * size))
-        self.volume_radius = float(params.get("volume_radius", scale * size))
-        if not (self.radius > 0 and self.volume_radius > 0):
-            raise PgiError(f"method {self.id}: radii must be positive")
+        self.radius = p.number("radius", scale * size, lo=0, lo_open=True)
+        self.volume_radius = p.number("volume_radius", scale * size, lo=0, lo_open=True)
         self.light_paths = LightPaths(
             self.native,
             self.tracer,
@@ -76,7 +73,7 @@ class PhotonMapping:
             seed=seed,
             threads=threads,
             paths=photons,
-            max_records=int(params.get("max_records", DEFAULT_MAX_RECORDS)),
+            max_records=max_records,
             segments=False,
         )
         self.kernel = _core.PhotonGatherer(

@@ -36,7 +36,7 @@ from ..scene.model import Scene
 from ..tracer import EmbreeTracer, RayBatch
 from . import lightpath
 from .lightpath import LightPaths
-from .lt import check_params
+from .params import MethodParams
 
 DEFAULT_LIGHT_PATHS = 1 << 13
 # Beams stored per iteration: a bound on memory (~100 bytes per beam with its pieces).
@@ -79,27 +79,17 @@ class ProgressivePhotonBeams:
     def __init__(
         self, scene: Scene, *, seed: int, threads: int, params: dict, spp_budget: int | None = None
     ) -> None:
-        check_params(self.id, params, _PARAMS)
-        light_paths = int(params.get("light_paths", DEFAULT_LIGHT_PATHS))
-        spp = int(params.get("spp_per_iteration", 1))
-        alpha = float(params.get("alpha", DEFAULT_ALPHA))
-        radius = float(params.get("radius", DEFAULT_RADIUS))
-        piece = float(params.get("piece_length", DEFAULT_PIECE_LENGTH))
-        max_beams = int(params.get("max_beams", DEFAULT_MAX_BEAMS))
-        gather_bounces = int(params.get("gather_bounces", DEFAULT_GATHER_BOUNCES))
-        surface_radius = float(params.get("surface_radius", DEFAULT_SURFACE_RADIUS))
-        surface_alpha = float(params.get("surface_alpha", DEFAULT_SURFACE_ALPHA))
-        if gather_bounces < 0:
-            raise PgiError("method ppb: gather_bounces must be >= 0")
-        if light_paths <= 0 or spp <= 0 or max_beams <= 0:
-            raise PgiError("method ppb: light_paths, spp_per_iteration, max_beams must be positive")
-        for key, a in (("alpha", alpha), ("surface_alpha", surface_alpha)):
-            if not 0 < a <= 1:
-                raise PgiError(f"method ppb: {key} must lie in (0, 1], got {a}")
-        if surface_radius < 0:
-            raise PgiError("method ppb: surface_radius must be >= 0 (0: path-traced surfaces)")
-        if not radius > 0 or not piece > 0:
-            raise PgiError("method ppb: radius and piece_length must be positive")
+        p = MethodParams(self.id, params, _PARAMS)
+        light_paths = p.integer("light_paths", DEFAULT_LIGHT_PATHS, lo=1)
+        spp = p.integer("spp_per_iteration", 1, lo=1)
+        alpha = p.number("alpha", DEFAULT_ALPHA, lo=0, hi=1, lo_open=True)
+        radius = p.number("radius", DEFAULT_RADIUS, lo=0, lo_open=True)
+        piece = p.number("piece_length", DEFAULT_PIECE_LENGTH, lo=0, lo_open=True)
+        max_beams = p.integer("max_beams", DEFAULT_MAX_BEAMS, lo=1)
+        gather_bounces = p.integer("gather_bounces", DEFAULT_GATHER_BOUNCES, lo=0)
+        # 0: path-traced surfaces
+        surface_radius = p.number("surface_radius", DEFAULT_SURFACE_RADIUS, lo=0)
+        surface_alpha = p.number("surface_alpha", DEFAULT_SURFACE_ALPHA, lo=0, hi=1, lo_open=True)
         if spp_budget and spp_budget % spp:
             raise PgiError(f"method ppb: spp_per_iteration {spp} must divide --spp {spp_budget}")
         self.native = build_native_scene(scene)

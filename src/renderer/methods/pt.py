@@ -15,10 +15,10 @@ import numpy as np
 
 from .. import _core
 from ..engine import build_native_scene
-from ..errors import PgiError
 from ..passes import trace_camera_wave
 from ..scene.model import Scene
 from ..tracer import EmbreeTracer, RayBatch
+from .params import MethodParams
 
 # Paths per wave: enough to amortise the Python passes over the native kernels.
 _TARGET_WAVE_PATHS = 1 << 16
@@ -40,13 +40,9 @@ class PathTracing:
     def __init__(
         self, scene: Scene, *, seed: int, threads: int, params: dict, spp_budget: int | None = None
     ) -> None:
-        unknown = set(params) - {"spp_per_wave"}
-        if unknown:
-            raise PgiError(
-                f"method pt: unknown parameter(s) {sorted(unknown)}; known: spp_per_wave"
-            )
         pixels = scene.film.width * scene.film.height
-        spp_per_wave = int(params.get("spp_per_wave", wave_spp(pixels, spp_budget)))
+        p = MethodParams(self.id, params, {"spp_per_wave"})
+        spp_per_wave = p.integer("spp_per_wave", wave_spp(pixels, spp_budget), lo=1)
         self.native = build_native_scene(scene)
         self.tracer = EmbreeTracer(self.native.triangles, threads)
         self.kernel = _core.PathTracer(

@@ -15,8 +15,8 @@ well. With the default alpha = 2/3 = 4 / (d + 4) the MSE falls as n^(-2/3) at be
 from __future__ import annotations
 
 from .. import _core
-from ..errors import PgiError
 from ..scene.model import Scene
+from .params import MethodParams
 from .pm import PhotonMapping
 
 DEFAULT_ALPHA = 2.0 / 3.0
@@ -35,13 +35,11 @@ class StochasticProgressivePhotonMapping(PhotonMapping):
     def __init__(
         self, scene: Scene, *, seed: int, threads: int, params: dict, spp_budget: int | None = None
     ) -> None:
-        params = dict(params)
+        p = MethodParams(self.id, params, self._known)
+        alpha = p.number("alpha", DEFAULT_ALPHA, lo=0, hi=1, lo_open=True, hi_open=True)
+        volume_alpha = p.number("volume_alpha", alpha, lo=0, hi=1, lo_open=True, hi_open=True)
+        params = {k: v for k, v in params.items() if k not in ("alpha", "volume_alpha")}
         params.setdefault("radius_scale", DEFAULT_INITIAL_RADIUS_SCALE)
-        alpha = float(params.pop("alpha", DEFAULT_ALPHA))
-        volume_alpha = float(params.pop("volume_alpha", alpha))
-        for name, a in (("alpha", alpha), ("volume_alpha", volume_alpha)):
-            if not 0 < a < 1:
-                raise PgiError(f"method sppm: {name} must lie in (0, 1), got {a}")
         super().__init__(scene, seed=seed, threads=threads, params=params, spp_budget=spp_budget)
         self.alpha, self.volume_alpha = alpha, volume_alpha
 

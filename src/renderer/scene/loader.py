@@ -20,6 +20,7 @@ import numpy as np
 import yaml
 
 from renderer.errors import PgiError
+from renderer.ranges import number_problem
 from renderer.scene import primitives
 from renderer.scene import transform as xf
 from renderer.scene.model import (
@@ -37,8 +38,13 @@ from renderer.scene.model import (
     Shape,
     SpotLight,
 )
+from renderer.volumes import MAX_GRID_SIDE
 
 SCENE_FILE = "scene.yaml"
+# Bounds that keep every value representable in the float32 of Embree and of the images.
+MAX_LIGHT = 1e30  # emitted radiance, intensity, irradiance
+MAX_COORDINATE = 1e15  # |vertex coordinate| (float32 spacing there is ~1e8: far beyond any scene)
+MAX_FILM_SIDE = 16384
 REPO_ROOT = Path(__file__).resolve().parents[3]  # src/renderer/scene/loader.py -> repo
 
 TOP_KEYS = {
@@ -93,11 +99,28 @@ class _UniqueKeyLoader(yaml.SafeLoader):
         return super().construct_mapping(node, deep=deep)
 
 
+# YAML 1.1 (PyYAML) reads 1e-3 and 1.0e6 as strings; scenes mean numbers, as YAML 1.2 does.
+_UniqueKeyLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
+    list("-+0123456789."),
+)
+
+
+def parse_yaml_value(text: str) -> Any:
+    """A value given on the command line, read as scene files are (1e-3 is a number)."""
+    return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 (a SafeLoader subclass)
+
+
 def _read_yaml(path: Path) -> dict:
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")
     except OSError as e:
         raise PgiError(f"{path}: cannot read: {e.strerror}") from e
+    except UnicodeDecodeError as e:
+        raise PgiError(
+            f"{path}: not a UTF-8 text file (byte {e.start}: {e.reason}); scene files are YAML"
+        ) from None
     try:
         doc = yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 (a SafeLoader subclass)
     except yaml.YAMLError as e:
@@ -171,6 +194,14 @@ def _merge_includes(main: Path, doc: dict, origins: _Origins) -> dict:
                 raise PgiError(
                     f"{file}: {key}: not allowed in an included file (allowed: {allowed})"
                 )
+            # Merged sections are checked here: a later file must not hide a broken one.
+            if key in ("materials", "media") and not isinstance(value, dict | None):
+                raise PgiError(
+                    f"{file}: {key}: expected a mapping of name -> definition, "
+                    f"got {_describe(value)}"
+                )
+            if key in ("shapes", "lights") and not isinstance(value, list | None):
+                raise PgiError(f"{file}: {key}: expected a list, got {_describe(value)}")
             target = merged.get(key)
             if (
                 key in ("materials", "media")
@@ -212,7 +243,7 @@ def _apply_override(doc: dict, text: str, origins: _Origins) -> None:
         for m in re.finditer(rf"({_KEY})|\[(\d+)\]", key)
     ]
     try:
-        value = yaml.safe_load(raw)
+        value = parse_yaml_value(raw)
     except yaml.YAMLError as e:
         raise PgiError(f"override {text!r}: value is not valid YAML") from e
     node: Any = doc
@@ -295,21 +326,9 @@ class _Validator:
         self, v: Any, path: KeyPath, lo: float | None = None, hi: float | None = None,
         lo_open: bool = False, hi_open: bool = False,
     ) -> float:  # fmt: skip
-        ok = isinstance(v, int | float) and not isinstance(v, bool) and np.isfinite(v)
-        if ok and lo is not None:
-            ok = v > lo if lo_open else v >= lo
-        if ok and hi is not None:
-            ok = v < hi if hi_open else v <= hi
-        if not ok:
-            rng = []
-            if lo is not None:
-                rng.append(f"{'>' if lo_open else '>='} {lo:g}")
-            if hi is not None:
-                rng.append(f"{'<' if hi_open else '<='} {hi:g}")
-            self.fail(
-                path,
-                f"expected a number{' ' + ' and '.join(rng) if rng else ''}, got {_describe(v)}",
-            )
+        expected = number_problem(v, lo, hi, lo_open, hi_open)
+        if expected:
+            self.fail(path, f"expected {expected}, got {_describe(v)}")
         return float(v)
 
     def integer(self, v: Any, path: KeyPath, lo: int, hi: int | None = None) -> int:
@@ -490,10 +509,19 @@ DENSITY_SOURCES = ("npy", "vdb", "perlin", "step")
 def _load_npy(val: _Validator, file: Path, p: KeyPath) -> np.ndarray:
     try:
         a = np.load(file, allow_pickle=False)
-    except (OSError, ValueError) as e:
-        val.fail(p, f"cannot read {file} as a .npy array: {e}")
-    if not isinstance(a, np.ndarray) or a.ndim != 3 or a.dtype.kind not in "fiu" or 0 in a.shape:
-        val.fail(p, f"{file}: expected a 3-D numeric array indexed [x, y, z], got {_describe(a)}")
+    except (OSError, ValueError, EOFError) as e:
+        why = "not a numpy .npy file" if "pickle" in str(e) else str(e).splitlines()[0]
+        val.fail(p, f"cannot read {file} as a .npy array: {why}")
+    if not isinstance(a, np.ndarray):
+        val.fail(p, f"{file}: expected one array, got {type(a).__name__}")
+    if a.ndim != 3 or a.dtype.kind not in "fiu" or 0 in a.shape:
+        val.fail(
+            p,
+            f"{file}: expected a 3-D numeric array indexed [x, y, z], got shape "
+            f"{list(a.shape)} of {a.dtype}",
+        )
+    if max(a.shape) > MAX_GRID_SIDE:
+        val.fail(p, f"{file}: shape {list(a.shape)}, at most {MAX_GRID_SIDE} voxels per axis")
     return a
 
 
@@ -501,8 +529,8 @@ def _resolution(val: _Validator, v: Any, p: KeyPath) -> tuple[int, int, int]:
     if isinstance(v, list):
         if len(v) != 3:
             val.fail(p, f"expected a number or [x, y, z], got {_describe(v)}")
-        return tuple(val.integer(n, p + (i,), 1, 1024) for i, n in enumerate(v))  # type: ignore
-    n = val.integer(v, p, 1, 1024)
+        return tuple(val.integer(n, p + (i,), 1, MAX_GRID_SIDE) for i, n in enumerate(v))  # type: ignore
+    n = val.integer(v, p, 1, MAX_GRID_SIDE)
     return (n, n, n)
 
 
@@ -579,6 +607,8 @@ def _load_density(
         )
     if not np.all(np.isfinite(a)):
         val.fail(p, f"{source}: density has non-finite values")
+    if np.abs(a).max() > np.finfo(np.float32).max:
+        val.fail(p, f"{source}: density exceeds the float32 range the renderers use")
     if a.min() < 0:
         idx = tuple(int(i) for i in np.unravel_index(np.argmin(a), a.shape))
         val.fail(p, f"{source}: density must be >= 0, got {a.min():g} at [x, y, z] = {list(idx)}")
@@ -653,10 +683,13 @@ def _shape(val: _Validator, i: int, d: Any, materials: dict, media: dict) -> Sha
     else:
         v, f = _mesh_file(val, d["file"], p + ("file",))
     m = val.transform(d.get("transform", []), p + ("transform",))
-    v = xf.apply_points(m, v)
+    with np.errstate(over="ignore", invalid="ignore"):
+        v = xf.apply_points(m, v)
+    if not np.all(np.abs(v) < MAX_COORDINATE):
+        val.fail(p + ("transform",), f"places vertices beyond +-{MAX_COORDINATE:g}")
     if np.linalg.det(m[:3, :3]) < 0:  # a mirroring transform: keep normals on the stated side
         f = f[:, ::-1].copy()
-    emission = val.rgb(d["emission"], p + ("emission",)) if "emission" in d else None
+    emission = val.rgb(d["emission"], p + ("emission",), hi=MAX_LIGHT) if "emission" in d else None
     if len(f) == 0 or primitives.area(v, f) <= 0:
         what = "an emitter needs area" if emission else "check its transform"
         val.fail(p, f"shape has zero surface area ({what})")
@@ -672,19 +705,26 @@ def _shape(val: _Validator, i: int, d: Any, materials: dict, media: dict) -> Sha
     )  # fmt: skip
 
 
+def _emits(light: Light) -> bool:
+    power = light.irradiance if isinstance(light, DirectionalLight) else light.intensity
+    return any(c > 0 for c in power)
+
+
 def _light(val: _Validator, i: int, d: Any) -> Light:
     p: KeyPath = ("lights", i)
     kind = val.kind(d, p, ("point", "spot", "directional"))
     if kind == "point":
         val.mapping(d, p, required=("type", "position", "intensity"))
         return PointLight(
-            val.vec3(d["position"], p + ("position",)), val.rgb(d["intensity"], p + ("intensity",))
+            val.vec3(d["position"], p + ("position",)),
+            val.rgb(d["intensity"], p + ("intensity",), hi=MAX_LIGHT),
         )
     if kind == "directional":
         val.mapping(d, p, required=("type", "direction", "irradiance"))
         direction = val.vec3(d["direction"], p + ("direction",), nonzero=True)
         return DirectionalLight(
-            direction / np.linalg.norm(direction), val.rgb(d["irradiance"], p + ("irradiance",))
+            direction / np.linalg.norm(direction),
+            val.rgb(d["irradiance"], p + ("irradiance",), hi=MAX_LIGHT),
         )
     val.mapping(
         d,
@@ -701,7 +741,8 @@ def _light(val: _Validator, i: int, d: Any) -> Light:
     beam = val.number(
         d.get("beam_width", cutoff * 0.75), p + ("beam_width",), lo=0, hi=cutoff, lo_open=True
     )
-    return SpotLight(pos, target, val.rgb(d["intensity"], p + ("intensity",)), cutoff, beam)
+    intensity = val.rgb(d["intensity"], p + ("intensity",), hi=MAX_LIGHT)
+    return SpotLight(pos, target, intensity, cutoff, beam)
 
 
 # --------------------------------------------------------------------------- entry point
@@ -728,8 +769,8 @@ def load_scene(path: str | Path, overrides: Sequence[str] = ()) -> Scene:
     if camera.medium is not None:
         val.name_ref(camera.medium, ("camera", "medium"), media, "medium")
     film_doc = val.mapping(doc["film"], ("film",), required=("width", "height"))
-    film = Film(val.integer(film_doc["width"], ("film", "width"), 1),
-                val.integer(film_doc["height"], ("film", "height"), 1))  # fmt: skip
+    film = Film(val.integer(film_doc["width"], ("film", "width"), 1, MAX_FILM_SIDE),
+                val.integer(film_doc["height"], ("film", "height"), 1, MAX_FILM_SIDE))  # fmt: skip
     integ = val.mapping(
         doc.get("integrator") or {},
         ("integrator",),
@@ -756,8 +797,11 @@ def load_scene(path: str | Path, overrides: Sequence[str] = ()) -> Scene:
     if not isinstance(lights_doc, list):
         val.fail(("lights",), f"expected a list of lights, got {_describe(lights_doc)}")
     lights = [_light(val, i, d) for i, d in enumerate(lights_doc)]
-    if not lights and not any(s.emission for s in shapes):
-        val.fail(("lights",), "the scene has no light: add a light or give a shape an emission")
+    if not any(map(_emits, lights)) and not any(s.emission and any(s.emission) for s in shapes):
+        val.fail(
+            ("lights",),
+            "the scene has no light that emits: add a light or give a shape a non-zero emission",
+        )
 
     return Scene(
         name=val.string(doc.get("name", file.parent.name), ("name",)),

@@ -1,0 +1,31 @@
+"""Checks of user-given numbers against a range, shared by the scene loader and method
+parameters so that both word their errors alike."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+
+def number_problem(
+    v: Any,
+    lo: float | None = None,
+    hi: float | None = None,
+    lo_open: bool = False,
+    hi_open: bool = False,
+) -> str | None:
+    """None if ``v`` is a finite number in the range, else what was expected, e.g.
+    ``"a number > 0 and <= 1"``."""
+    ok = isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+    if ok and lo is not None:
+        ok = v > lo if lo_open else v >= lo
+    if ok and hi is not None:
+        ok = v < hi if hi_open else v <= hi
+    if ok:
+        return None
+    bounds = []
+    if lo is not None:
+        bounds.append(f"{'>' if lo_open else '>='} {lo:g}")
+    if hi is not None:
+        bounds.append(f"{'<' if hi_open else '<='} {hi:g}")
+    return "a number" + (" " + " and ".join(bounds) if bounds else "")
