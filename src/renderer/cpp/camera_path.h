@@ -13,10 +13,6 @@
 
 namespace pgi {
 
-// A path crossing more null boundaries than this in a row is trapped (e.g. in
-// coincident faces) and ends.
-constexpr int kMaxNullCrossings = 256;
-
 struct CameraPath {
     Vec3 pos, dir;
     RGB throughput{1.0};
@@ -90,16 +86,10 @@ public:
         x = scene_.triangles[tri].point(u, v);
         add_emission(p, tri, x);
         if (scene_.materials[scene_.triangles[tri].material].type == MaterialType::Null) {
-            cross_null(p, tri, x);
+            cross_null_boundary(scene_, p, tri, x);
             return false;
         }
         return true;
-    }
-    // Index-matched boundary: change medium, keep direction, depth and MIS state.
-    void cross_null(CameraPath &p, int tri, const Vec3 &x) const {
-        p.medium = scene_.triangles[tri].medium_after(p.medium, p.dir);
-        p.pos = scene_.offset(x, tri, p.dir);
-        p.alive = ++p.null_crossings < kMaxNullCrossings;
     }
     // Counts a real scattering event; false (and the path ends) past max_depth.
     bool count_event(CameraPath &p) const {

@@ -7,7 +7,6 @@
 namespace pgi {
 
 // Null crossings allowed per path before we call it trapped.
-constexpr int kMaxLightNullCrossings = 256;
 // Stream tag so that light paths never share random numbers with camera paths.
 constexpr uint64_t kLightStreamTag = 0x4c69676874506174ull;
 
@@ -154,6 +153,7 @@ void LightPathTracer::emit(LightPathState &p, size_t slot, int64_t path) {
 
 void LightPathTracer::scatter(const Hits &hits) {
     const Scene &scene = *scene_;
+    hits.expect(active_.size(), "light-path scatter");
     uint64_t lookups = 0;
     size_t n = hits.count;
     slot_has_vertex_.assign(n, 0);
@@ -194,9 +194,7 @@ void LightPathTracer::scatter(const Hits &hits) {
         const Triangle &T = scene.triangles[tri];
         Vec3 x = T.point(hits.u[k], hits.v[k]);
         if (scene.materials[T.material].type == MaterialType::Null) {
-            p.medium = T.medium_after(p.medium, p.dir);
-            p.pos = scene.offset(x, tri, p.dir);
-            p.alive = ++p.null_crossings < kMaxLightNullCrossings;
+            cross_null_boundary(scene, p, tri, x);
             continue;
         }
         scatter_on_surface(p, size_t(k), tri, x);

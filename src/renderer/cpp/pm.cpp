@@ -3,7 +3,6 @@
 
 namespace pgi {
 
-constexpr int kMaxGatherNullCrossings = 256;
 // Specular bounces followed when max_depth is unlimited.
 constexpr int kMaxSpecularBounces = 64;
 constexpr uint64_t kGatherStreamTag = 0x4761746865725061ull;
@@ -110,6 +109,7 @@ RGB PhotonGatherer::surface_estimate(const GatherPath &p, int tri, const Vec3 &x
 
 void PhotonGatherer::shade(const Hits &hits, double surface_radius, double volume_radius) {
     const Scene &scene = *scene_;
+    hits.expect(active_.size(), "pm shade");
     uint64_t lookups = 0, surface_accepted = 0, volume_accepted = 0;
     const int max_specular = max_depth_ < 0 ? kMaxSpecularBounces : max_depth_;
 #pragma omp parallel for schedule(dynamic, 64) num_threads(threads_) \
@@ -141,9 +141,7 @@ void PhotonGatherer::shade(const Hits &hits, double surface_radius, double volum
         // Emitters seen directly or through specular chains: full weight (no NEE here).
         if (max_depth_ < 0 || p.specular < max_depth_) p.radiance += p.throughput * scene.emitted(tri, p.dir);
         if (mat.type == MaterialType::Null) {
-            p.medium = T.medium_after(p.medium, p.dir);
-            p.pos = scene.offset(x, tri, p.dir);
-            p.alive = ++p.null_crossings < kMaxGatherNullCrossings;
+            cross_null_boundary(scene, p, tri, x);
             continue;
         }
         if (!mat.is_delta()) {

@@ -101,6 +101,7 @@ RGB PhotonBeams::gather(BeamGatherPath &p, double t_end, MediumStats &local, uin
 
 size_t PhotonBeams::shade(const Hits &hits) {
     const Scene &scene = *scene_;
+    hits.expect(active_.size(), "ppb shade");
     uint64_t lookups = 0, pairs = 0;
     shadow_.open(hits.count);
 #pragma omp parallel for schedule(dynamic, 64) num_threads(threads_) reduction(+ : lookups, pairs)

@@ -21,6 +21,7 @@ size_t PathTracer::begin_wave(int64_t iteration, const RayBuffers &out) {
 
 size_t PathTracer::shade(const Hits &hits) {
     const Scene &scene = *scene_;
+    hits.expect(active_.size(), "pt shade");
     MediumStats counts;
     shadow_.open(hits.count);
 #pragma omp parallel for schedule(dynamic, 256) num_threads(threads_) reduction(+ : counts)

@@ -7,6 +7,7 @@
 
 #include <numeric>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "scene.h"
@@ -14,6 +15,19 @@
 namespace pgi {
 
 constexpr float kFarDistance = 1e30f;
+
+// A path that has crossed this many null boundaries is trapped (e.g. between
+// coincident faces) and ends.
+constexpr int kMaxNullCrossings = 256;
+
+// An index-matched (null) boundary at x on triangle `tri`: the path changes medium
+// and keeps its direction, depth and MIS state. Crossings count over the whole path.
+template <typename Path>
+void cross_null_boundary(const Scene &scene, Path &p, int tri, const Vec3 &x) {
+    p.medium = scene.triangles[tri].medium_after(p.medium, p.dir);
+    p.pos = scene.offset(x, tri, p.dir);
+    p.alive = ++p.null_crossings < kMaxNullCrossings;
+}
 
 // Ray buffers owned by Python: origins (n, 3), directions (n, 3), tmax (n).
 struct RayBuffers {
@@ -31,6 +45,12 @@ struct Hits {
     const float *tfar = nullptr, *u = nullptr, *v = nullptr;
     const int32_t *prim = nullptr;
     size_t count = 0;
+    // Hit k belongs to ray k of the batch the kernel wrote: the counts must agree.
+    void expect(size_t rays, const char *pass) const {
+        if (count != rays)
+            throw std::invalid_argument(std::string(pass) + ": " + std::to_string(count) + " hits for " +
+                                        std::to_string(rays) + " rays");
+    }
 };
 
 // A connection towards a light point (or the camera) whose contribution is
@@ -142,6 +162,7 @@ public:
     // of rays that reached their target unoccluded.
     template <typename Deliver>
     void resolve(const Scene &scene, const Hits &hits, int threads, MediumStats &stats, Deliver &&deliver) {
+        hits.expect(travelling_.size(), "resolve_shadows");
         MediumStats counts;
 #pragma omp parallel for schedule(static) num_threads(threads) reduction(+ : counts)
         for (int64_t j = 0; j < int64_t(travelling_.size()); ++j) {

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import _core
-from ..engine import build_native_scene
+from ..engine import build_native_scene, scene_radius
 from ..errors import PgiError
 from ..scene.model import Scene
 from ..tracer import EmbreeTracer, RayBatch
@@ -29,12 +29,6 @@ DEFAULT_PHOTONS = 1 << 16
 DEFAULT_MAX_RECORDS = 1 << 23
 # Default radii relative to the scene's bounding-sphere radius.
 DEFAULT_RADIUS_SCALE = 0.02
-
-
-def scene_radius(triangles: np.ndarray) -> float:
-    """Half the diagonal of the triangles' bounding box (the core's scene_radius)."""
-    pts = triangles.reshape(-1, 3)
-    return float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)) / 2)
 
 
 class PhotonMapping:

@@ -29,12 +29,11 @@ from __future__ import annotations
 import numpy as np
 
 from .. import _core
-from ..engine import build_native_scene
+from ..engine import build_native_scene, scene_radius
 from ..errors import PgiError
 from ..passes import trace_camera_wave
 from ..scene.model import Scene
 from ..tracer import EmbreeTracer, RayBatch
-from . import lightpath
 from .lightpath import LightPaths
 from .params import MethodParams
 
@@ -64,12 +63,6 @@ _PARAMS = {
     "surface_radius",
     "surface_alpha",
 }
-
-
-def scene_radius(triangles: np.ndarray) -> float:
-    """Half the diagonal of the triangles' bounding box (the core's scene_radius)."""
-    pts = triangles.reshape(-1, 3)
-    return float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)) / 2)
 
 
 class ProgressivePhotonBeams:
@@ -105,8 +98,6 @@ class ProgressivePhotonBeams:
             max_records=2 * max_beams,
             vertices=surface_radius > 0,
         )
-        per_triangle, per_light = lightpath.emission_media(self.native, self.tracer, scene, seed)
-        self.light_paths.kernel.set_emission_media(per_triangle.tolist(), per_light.tolist())
         self.kernel = _core.PhotonBeams(
             self.native.core,
             scene.integrator.max_depth,
