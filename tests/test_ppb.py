@@ -70,6 +70,7 @@ def _run(scene, seed: int):
             snapshots[i + 1] = method.image()
     stats = method.stats()
     assert stats["nonfinite"] == 0 and stats["beams_truncated"] == 0
+    assert stats["beams_escaped"] == 0
     assert stats["beam_pairs"] > 0
     return np.stack(images), snapshots
 
@@ -147,3 +148,30 @@ def test_variants_image_mean_matches_pt(name, params):
     assert method.stats()["nonfinite"] == 0
     ppb = Estimate(np.stack(images)).image_mean()
     assert_agrees_within_bias_allowance(ppb, pt, name)
+
+
+def test_light_paths_escaping_an_unbounded_medium_are_counted(tmp_path):
+    """Known limitation: a density grid with no shape around it (the camera and the light inside
+    its box) lets light paths leave the scene in the medium; their last segment would be an
+    infinite beam. ppb drops them and says so in its stats."""
+    import yaml
+
+    from renderer.scene import load_scene
+
+    np.save(tmp_path / "d.npy", np.ones((2, 2, 2), np.float32))
+    doc = {
+        "camera": {"origin": [0, 1, 1.5], "target": [0, 0, 0], "up": [0, 1, 0], "fov": 40,
+                   "medium": "fog"},
+        "film": {"width": 4, "height": 4},
+        "materials": {"white": {"type": "diffuse", "reflectance": 0.5}},
+        "media": {"fog": {"type": "grid", "density": "d.npy", "sigma_t": 0.1, "albedo": 0.9,
+                          "transform": [{"scale": 4}, {"translate": [-2, -2, -2]}]}},
+        "shapes": [{"type": "rectangle", "material": "white", "exterior": "fog",
+                    "transform": [{"rotate": {"axis": [1, 0, 0], "angle": -90}}]}],
+        "lights": [{"type": "point", "position": [0, 1, 0], "intensity": 1.0}],
+    }  # fmt: skip
+    (tmp_path / "scene.yaml").write_text(yaml.safe_dump(doc))
+    scene = load_scene(tmp_path / "scene.yaml")
+    ppb = ProgressivePhotonBeams(scene, seed=0, threads=1, params={"light_paths": 256})
+    ppb.run_iteration(0)
+    assert ppb.stats()["beams_escaped"] > 0

@@ -14,7 +14,13 @@ void BeamBvh::build(std::vector<Beam> beams, double radius, double max_piece_len
     beams_.reserve(std::min(beams.size(), max_beams_));
     size_t skipped_over_bound = 0;
     for (Beam &b : beams) {
-        if (!(b.length > 0) || is_black(b.power) || !std::isfinite(b.length)) continue;
+        if (!std::isfinite(b.length)) {
+            // A light path that left the scene inside a medium (a grid no shape encloses):
+            // its flux is real but no finite beam holds it. Counted, not hidden.
+            ++escaped_;
+            continue;
+        }
+        if (!(b.length > 0) || is_black(b.power)) continue;
         if (beams_.size() >= max_beams_) {
             ++skipped_over_bound;
             continue;

@@ -70,6 +70,7 @@ public:
     double piece_length() const { return piece_length_; }
     size_t max_beams() const { return max_beams_; }
     uint64_t truncated() const { return truncated_; }  // beams dropped by the bound, all builds
+    uint64_t escaped() const { return escaped_; }      // infinite beams dropped, all builds
 
 private:
     struct Piece {
@@ -92,6 +93,7 @@ private:
     double radius_ = 0, piece_length_ = 0;
     size_t max_beams_;
     uint64_t truncated_ = 0;
+    uint64_t escaped_ = 0;
 };
 
 // Closest approach of the lines (o_b + s u) and (o_r + t v), u and v unit.

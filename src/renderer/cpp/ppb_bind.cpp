@@ -120,6 +120,7 @@ void bind_ppb(nb::module_ &m) {
         .def_prop_ro("nonfinite", [](const PhotonBeams &pb) { return pb.film().nonfinite; })
         .def_prop_ro("beams_stored", [](const PhotonBeams &pb) { return pb.stats().beams; })
         .def_prop_ro("beams_truncated", [](const PhotonBeams &pb) { return pb.bvh().truncated(); })
+        .def_prop_ro("beams_escaped", [](const PhotonBeams &pb) { return pb.bvh().escaped(); })
         .def_prop_ro("beam_pairs", [](const PhotonBeams &pb) { return pb.stats().beam_pairs; })
         .def_prop_ro("density_lookups", [](const PhotonBeams &pb) { return pb.stats().density_lookups; })
         .def_prop_ro("pieces", [](const PhotonBeams &pb) { return pb.bvh().piece_count(); });

@@ -139,6 +139,8 @@ class ProgressivePhotonBeams:
             "beams": int(self.kernel.beams_stored),
             "surface_photons": int(self.kernel.photons_stored),
             "beams_truncated": int(self.kernel.beams_truncated),
+            # light paths that escaped inside an unbounded medium: their flux is missing
+            "beams_escaped": int(self.kernel.beams_escaped),
             "beam_pairs": int(self.kernel.beam_pairs),
             "rays": int(self.tracer.rays_traced),
             "nonfinite": int(self.kernel.nonfinite),
