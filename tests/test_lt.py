@@ -16,6 +16,7 @@ import pytest
 
 from conftest import load_small
 from parity import agreement, mitsuba, ours
+from renderer.engine import build_native_scene
 from renderer.errors import PgiError
 from renderer.methods.lightpath import LightPaths
 from renderer.methods.lt import LightTracing
@@ -224,9 +225,22 @@ def test_records_follow_depth_and_medium_rules():
     ends = s["origin"][hit] + s["direction"][hit] * s["length"][hit, None]
     starts = v["position"][medium & (v["depth"] == 1)]
     assert len(ends) == len(starts) and np.allclose(ends, starts)
-    # Surface vertices are made only on diffuse surfaces, lit from the front.
+    # Surface vertices are made only on diffuse surfaces (not on the null fog boundary), lit
+    # from the front: wi points back to the previous vertex, on the side of the normal.
     surf = v["kind"] == 1
     assert np.all(np.einsum("ij,ij->i", v["wi"][surf], v["wi"][surf]) > 0.999)
+    scene = load_small("cbox-fog", 8, 8)
+    native = build_native_scene(scene)
+    tri = native.triangles[v["triangle"][surf]]
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    assert np.all(np.einsum("ij,ij->i", v["wi"][surf], normal) > 0)
+    boundary = next(i for i, sh in enumerate(scene.shapes) if sh.material == "boundary")
+    first = sum(len(sh.faces) for sh in scene.shapes[:boundary])  # no triangle is dropped here
+    assert native.dropped_triangles == 0
+    on_boundary = (v["triangle"][surf] >= first) & (
+        v["triangle"][surf] < first + len(scene.shapes[boundary].faces)
+    )
+    assert surf.sum() > 1000 and not on_boundary.any()
 
 
 def test_vertex_order_is_deterministic_across_threads():

@@ -175,3 +175,26 @@ def test_light_paths_escaping_an_unbounded_medium_are_counted(tmp_path):
     ppb = ProgressivePhotonBeams(scene, seed=0, threads=1, params={"light_paths": 256})
     ppb.run_iteration(0)
     assert ppb.stats()["beams_escaped"] > 0
+
+
+def test_each_iteration_gathers_with_its_scheduled_beam_radius():
+    """What the kernels use: iteration i of ppb with alpha < 1 equals iteration i of ppb with a
+    fixed radius (alpha = 1) of r_1 i^(alpha - 1) (Knaus & Zwicker with d = 1; same seed, so the
+    same beams and camera paths). A radius that stopped shrinking differs."""
+    scene = load_small("cbox-fog", 8, 8)
+    common = {"light_paths": 512, "surface_radius": 0.0}
+    ppb = ProgressivePhotonBeams(
+        scene, seed=2, threads=2, params={**common, "radius": 0.05, "alpha": 0.6}
+    )
+    previous = np.zeros_like(ppb.image())
+    for i in range(3):
+        ppb.run_iteration(i)
+        total = ppb.image() * (i + 1)
+        own, previous = total - previous, total
+        radius = 0.05 * (i + 1) ** (0.6 - 1)
+        fixed = ProgressivePhotonBeams(
+            scene, seed=2, threads=2, params={**common, "radius": radius, "alpha": 1.0}
+        )
+        fixed.run_iteration(i)
+        assert np.allclose(own, fixed.image(), rtol=1e-9, atol=1e-12), i
+        assert ppb.stats()["radius"] == pytest.approx(fixed.stats()["radius"])
