@@ -55,6 +55,23 @@ def test_time_to_error() -> None:
     assert math.isnan(time_to_error(t, [1, 1, 1], 0.1)[0])
 
 
+def test_time_to_error_never_contradicts_the_measurements() -> None:
+    t = [1.0, 2.0, 4.0, 8.0]
+    # never reached: extrapolated from the last point, so after it (the fit through all the
+    # points would have put it at 1.3 s)
+    got, extrap = time_to_error(t, [4.0, 2.0, 1.5, 1.1], 1.0)
+    assert extrap and got >= 8.0
+    # below the target at the first point: extrapolated back from it, so before it
+    got, extrap = time_to_error(t, [0.99, 0.98, 0.3, 0.05], 1.0)
+    assert extrap and got <= 1.0
+    # a later rise above the target and fall below it again is not "first reached"
+    got, extrap = time_to_error(t, [0.9, 1.1, 0.8, 0.7], 1.0)
+    assert extrap and got <= 1.0
+    # the first crossing from above is interpolated
+    got, extrap = time_to_error(t, [4.0, 2.0, 0.5, 2.0], 1.0)
+    assert not extrap and 2.0 < got < 4.0
+
+
 def test_time_to_error_far_outside_the_budgets_becomes_a_bound() -> None:
     t = np.array([1.0, 2.0, 4.0])
     e = np.array([0.1, 0.05, 0.025])  # slope -1

@@ -66,12 +66,15 @@ def fit_slope_above_floor(
 def time_to_error(
     times: Sequence[float], errors: Sequence[float], target: float, extrapolate: bool = True
 ) -> tuple[float, bool]:
-    """Time at which a (mean) error curve reaches ``target``.
+    """Time at which a (mean) error curve first reaches ``target``.
 
-    Interpolates linearly in log-log space between the first pair of consecutive points that
-    brackets the target. If the curve never gets that low (or starts below it), the fitted
-    power law is used when ``extrapolate`` and the slope is negative. Returns
-    ``(time, extrapolated)``; ``(nan, True)`` when no estimate is possible.
+    Measured: if the first point is above the target, linear interpolation in log-log space
+    between the last point above it and the first point at or below it. Otherwise, when
+    ``extrapolate`` and the fitted slope is negative, the fitted slope is followed from the
+    nearest measured point: back from the first point when the curve starts at or below the
+    target (the time is then at most the first time), on from the last point when it never
+    gets there (at least the last time). Returns ``(time, extrapolated)``; ``(nan, True)``
+    when no estimate is possible.
     """
     t = np.asarray(times, dtype=np.float64)
     e = np.asarray(errors, dtype=np.float64)
@@ -82,21 +85,22 @@ def time_to_error(
     if t.size == 0 or not target > 0:
         return math.nan, True
     lt, le, lg = np.log10(t), np.log10(e), math.log10(target)
-    for i in range(t.size - 1):
-        a, b = le[i], le[i + 1]
-        if (a - lg) * (b - lg) <= 0 and a != b:
-            f = (a - lg) / (a - b)
-            return float(10 ** (lt[i] + f * (lt[i + 1] - lt[i]))), False
-        if a == b == lg:
-            return float(t[i]), False
-    if t.size == 1 and e[0] == target:
+    if e[0] == target:
         return float(t[0]), False
+    if e[0] > target:
+        reached = np.flatnonzero(e <= target)
+        if reached.size:  # the first crossing from above
+            i = int(reached[0])
+            f = (le[i - 1] - lg) / (le[i - 1] - le[i])
+            return float(10 ** (lt[i - 1] + f * (lt[i] - lt[i - 1]))), False
     if not extrapolate:
         return math.nan, True
     fit = fit_slope(t, e)
     if not fit.slope < 0:
         return math.nan, True
-    exponent = (lg - fit.intercept) / fit.slope
+    end = 0 if e[0] < target else -1  # the measured point nearest to the target
+    exponent = lt[end] + (lg - le[end]) / fit.slope
+    exponent = min(exponent, lt[0]) if end == 0 else max(exponent, lt[-1])
     if not abs(exponent) < 300:  # a nearly flat fit: out of float range either way
         return (math.inf if exponent > 0 else 0.0), True
     return float(10**exponent), True

@@ -88,6 +88,11 @@ def summarize(runs: pd.DataFrame) -> pd.DataFrame:
     return agg.reset_index()
 
 
+def render_time(d: pd.DataFrame, column: str = "render_seconds") -> pd.Series:
+    """Measured render seconds, or the budget where a run did not record them."""
+    return d[column].where(d[column] > 0, d["budget"])
+
+
 def best_methods(summary: pd.DataFrame, metric: str) -> pd.DataFrame:
     """The method with the lowest mean ``metric`` per scene and budget."""
     col = f"{metric}_mean"
@@ -102,7 +107,7 @@ def convergence_table(runs: pd.DataFrame, metrics: Sequence[str] = METRICS) -> p
         for m in metrics:
             if m not in d:
                 continue
-            t = d["render_seconds"].where(d["render_seconds"] > 0, d["budget"])
+            t = render_time(d)
             f = fit_slope(t.to_numpy(), d[m].to_numpy())
             floor = REFERENCE_ERROR.get(m)
             g = (
@@ -133,15 +138,16 @@ def time_to_error_table(summary: pd.DataFrame, metric: str, baseline: str) -> pd
     for scene, d in summary.groupby("scene", sort=True):
         base = d[d.method == baseline]
         if not base.empty and np.isfinite(base[col]).any():
-            target = float(base.sort_values("budget")[col].dropna().iloc[-1])
-            target_from = f"{baseline} at {base.budget.max():g} s"
+            last = base.dropna(subset=[col]).sort_values("budget").iloc[-1]
+            target = float(last[col])
+            target_from = f"{baseline} at {last.budget:g} s"
         else:
             finals = d.sort_values("budget").groupby("method")[col].last()
             target = float(finals.median())
             target_from = "median final error"
         times: dict[str, tuple[float, bool, str]] = {}
         for method, dm in d.groupby("method", sort=True):
-            t_col = dm["render_seconds_mean"].where(dm["render_seconds_mean"] > 0, dm["budget"])
+            t_col = render_time(dm, "render_seconds_mean")
             t, e = t_col.to_numpy(), dm[col].to_numpy()
             times[method] = bounded(time_to_error(t, e, target), t, e, target)
         t_base, _, base_bound = times.get(baseline, (math.nan, True, ""))

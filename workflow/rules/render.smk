@@ -18,6 +18,8 @@ rule render:
         snapshots=PLAN.snapshot_arg(),
         extra=lambda w: " ".join(shlex.quote(a) for a in PLAN.method_args.get(w.method, ())),
         pgi=PGI,
+        # Snakemake does not rerun a job whose `threads:` changed; a param makes it.
+        nthreads=PLAN.threads,
     threads: PLAN.threads
     resources:
         timed_render=1,

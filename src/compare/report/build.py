@@ -89,8 +89,9 @@ def _legend(metric: str, factor: float) -> str:
     return (
         f'<p class="note">{e(_metric_label(metric))}, mean ± standard deviation over seeds. '
         "<b>Bold green</b>: lowest mean error for that scene and budget. "
-        f'<span class="flag">⚠</span>: the reference\'s own relMSE is not at least {factor:g}x '
-        "below this cell's relMSE, so the reference may limit what the cell can show.</p>"
+        f'<span class="flag">⚠</span>: for at least one seed, the reference\'s own relMSE is '
+        f"not {factor:g}x below that run's relMSE, so the reference may limit what the cell "
+        "can show.</p>"
     )
 
 

@@ -14,7 +14,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 from ..convergence import fit_slope  # noqa: E402
-from ..tables import METRIC_LABELS  # noqa: E402
+from ..tables import METRIC_LABELS, render_time  # noqa: E402
 
 plt.rcParams["svg.fonttype"] = "none"  # keep text as text: smaller, searchable
 
@@ -35,7 +35,7 @@ def convergence_svg(
     fitted slope in the legend, and the reference's own error as a dashed line."""
     fig, ax = plt.subplots(figsize=(6.4, 4.2), dpi=100)
     for method, d in runs.groupby("method", sort=True):
-        t_all = d["render_seconds"].where(d["render_seconds"] > 0, d["budget"])
+        t_all = render_time(d)
         d = d.assign(t=t_all)
         g = d.groupby("budget")
         t = g["t"].mean()
