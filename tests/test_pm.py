@@ -63,21 +63,30 @@ def test_bias_shrinks_with_the_radius(ref):
     assert bias2[0.15] > 1.5 * bias2[0.075]
 
 
-def test_small_radius_agrees_with_pt_on_average(ref):
-    """With r = 0.04 the remaining bias is below the noise of this test's image mean."""
-    reference_estimate, mask = ref
+@pytest.mark.parametrize("name, radius", [("cbox-fog", 0.04), ("cbox-grid", 0.02)])
+def test_small_radius_agrees_with_pt_on_average(ref, name, radius):
+    """With a small radius the remaining bias is below the noise of this test's image mean: the
+    two means agree within 3.3 standard errors (two-sided p = 1e-3), each error measured from
+    independent iterations. cbox-grid scatters in a density grid, where the beam radiance
+    estimate tracks transmittance per medium segment; its sharp density features blur more
+    (measured relative bias of the mean: -2.8 %, -1.7 %, -0.65 % at r = 0.08, 0.04, 0.02,
+    i.e. ~r), so it needs the smaller radius."""
+    reference_estimate, mask = ref if name == "cbox-fog" else reference(name)
     pm = ours(
         PhotonMapping,
-        load_small("cbox-fog", RES, RES),
+        load_small(name, RES, RES),
         16,
         seed=2,
         photons=1 << 14,
         spp_per_iteration=16,
-        radius=0.04,
-        volume_radius=0.04,
+        radius=radius,
+        volume_radius=radius,
     )
-    a, b = pm.mean[mask].mean(), reference_estimate.mean[mask].mean()
-    assert abs(a / b - 1) < 0.02
+    a = pm.samples[:, mask].mean(axis=(1, 2))  # masked image mean per iteration
+    b = reference_estimate.samples[:, mask].mean(axis=(1, 2))
+    se = np.sqrt(a.var(ddof=1) / len(a) + b.var(ddof=1) / len(b))
+    print(f"{name}: pm {a.mean():.5f}, pt {b.mean():.5f}, {(a.mean() - b.mean()) / se:+.2f} se")
+    assert abs(a.mean() - b.mean()) < 3.3 * se
 
 
 def _render(name: str, threads: int, cls=PhotonMapping, **params) -> np.ndarray:
