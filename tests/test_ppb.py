@@ -4,8 +4,12 @@ ppb is consistent, not unbiased: each iteration blurs the beams with a 1D kernel
 r_i = r_1 i^(alpha - 1), so its error is variance plus a shrinking bias. The tests therefore
 
 - compare the *image mean* with pt's (the blur moves light around but hardly changes the
-  total: the allowance for bias is 1% of the mean on top of the measured standard errors,
-  while the measured difference is a few tenths of a percent);
+  total: the allowance for bias is 0.5% of the mean, added in quadrature to the measured
+  standard errors; measured differences: -0.02 to -0.6 % per channel on cbox-fog, 0.3 to
+  1.6 standard errors everywhere). Power: on cbox-fog (4 seeds x 64 iterations) the standard
+  error is ~1% of the mean, so a deficit of ~4% fails; on the cbox-grid and crepuscular
+  variants ppb's own variance (beams in dense or thin media: per-iteration spread ~30% of
+  the mean) leaves ~5% standard errors, so there only gross errors show;
 - check convergence per pixel: the MSE against a pt reference (its own variance subtracted)
   must fall from 2 to 64 iterations, and the log-log slope fitted over 2..64 iterations,
   averaged over seeds, must lie in [-1.4, -0.5]. Theory: -min(alpha, 4 (1 - alpha)) = -0.8
@@ -37,7 +41,7 @@ SEEDS = 4
 ITERATIONS = 64
 CHECKPOINTS = (2, 4, 8, 16, 32, 64)
 SLOPE_BAND = (-1.4, -0.5)
-BIAS_ALLOWANCE = 0.01  # relative, on the image mean
+BIAS_ALLOWANCE = 0.005  # relative, on the image mean
 
 
 @pytest.fixture(scope="module")
