@@ -80,10 +80,13 @@ def test_optical_thickness_unbiased(estimator, tau, kind):
     t, lookups = transmittance(grid, estimator, o, d, n, seed=int(tau * 1000) % 997)
     assert np.all(np.isfinite(t)) and np.all((t >= 0) & (t <= 1)), estimator
     mean, se = stats.mean_and_se(t)
-    if exact * n > 20:  # the estimate is not a rare event
+    if estimator == "delta":  # 0/1 estimates: the count of ones is exactly binomial
+        assert set(np.unique(t)) <= {0.0, 1.0}
+        assert stats.binomial_p_value(int(t.sum()), n, exact) >= LEVEL, (mean, exact)
+    elif exact * n > 20 or se > 0:  # the CLT holds for the mean of continuous estimates
         assert stats.z_p_value(mean, exact, max(float(se), 1e-15)) >= LEVEL, (mean, se, exact)
-    else:
-        assert mean < 1e-3
+    else:  # every estimate is 0: as likely as not when the truth is this small
+        assert mean == 0 and exact * n < 1, (mean, exact)
     # Free flights through the same grid: finite distances inside the medium or none.
     tf, w = grid.scene.free_flight(grid.id, tuple(o), tuple(d), np.inf, 3, 1000)
     assert np.all(np.isfinite(w)) and np.all(w >= 0)
@@ -160,8 +163,10 @@ def test_extreme_hg_renders_match_mitsuba(g):
     b = mitsuba(scene, 24, 32)
     result = agreement(a.image_mean(), b.image_mean(), 1e-3)
     assert result.max_abs_z < result.z_limit, result
-    # No fireflies from a pdf mismatch: our per-pixel variance is not larger than Mitsuba's
-    # (both sample HG exactly; a mismatch would show up as a heavier tail in ours).
+    # No fireflies from a pdf mismatch: our per-pixel variance is not larger than Mitsuba's.
+    # Not a statistical tolerance: the two path tracers legitimately differ in variance by
+    # tens of percent (light selection, MIS details), while a pdf/eval mismatch at
+    # g = +-0.99 gives weights up to (1 + g) / (1 - g) ~ 200 and variance far beyond 2x.
     var_ours = a.samples.var(axis=0, ddof=1).sum()
     var_mitsuba = b.samples.var(axis=0, ddof=1).sum()
     assert var_ours < 2.0 * var_mitsuba, (var_ours, var_mitsuba)
