@@ -208,3 +208,26 @@ def test_unwritable_outputs_are_refused_before_rendering(tmp_path):
         r = pgi("render", "cbox", "--method", "pt", "--spp", "1", "-o", target, cwd=tmp_path)
         assert r.returncode == 2 and expected in r.stderr and "Traceback" not in r.stderr
     assert sorted(p.name for p in tmp_path.rglob("*")) == ["a.json", "dir.exr", "out"]
+
+
+def test_validate_version_reference_and_every_method_succeed(tmp_path):
+    """The success paths a user takes first: each writes what it says and exits 0."""
+    from renderer.imageio import read_exr
+    from renderer.methods import method_ids
+
+    v = pgi("validate", "cbox-fog")
+    assert v.returncode == 0 and "cbox-fog" in v.stdout and "ok (" in v.stdout, v.stderr
+    assert pgi("--version").stdout.startswith("pgi ")
+    ref = tmp_path / "ref.exr"
+    r = pgi("reference", "cbox", "--spp", "4", "--threads", "1", *small(), "-o", str(ref))
+    assert r.returncode == 0, r.stderr
+    assert read_exr(ref).mean() > 0 and json.loads(ref.with_suffix(".json").read_text())["spp"] == 4
+    for method in method_ids():
+        out = tmp_path / f"{method}.exr"
+        r = pgi(
+            "render", "cbox", "--method", method, "--time", "0.3", "-q", *small(), "-o", str(out)
+        )
+        assert r.returncode == 0, (method, r.stderr)
+        info = json.loads(out.with_suffix(".json").read_text())
+        assert info["method"] == method and info["render_seconds"] >= 0.3 and info["spp"] > 0
+        assert read_exr(out).mean() > 0, method

@@ -24,13 +24,31 @@ CASES = [
     ("cbox-fog", 40, 96, 40, 96),
     ("cbox-grid", 40, 96, 40, 96),
     ("cbox-glass", 40, 96, 40, 96),
+    ("cbox-delta-lights", 40, 96, 40, 96),
 ]
+# Conventions no shipped box scene uses: a spot light (cutoff_angle, beam_width and its
+# linear falloff between them), a point light's intensity, and an ideal mirror (the tall box);
+# the area light is switched off.
+VARIANTS = {
+    "cbox-delta-lights": (
+        "cbox",
+        (
+            "shapes[7].emission=0",
+            "materials.mirror={type: mirror}",
+            "shapes[6].material=mirror",
+            "lights=[{type: spot, position: [-0.3, 0.95, 0.2], target: [-0.2, -1, 0.1], "
+            "intensity: 6, cutoff_angle: 35, beam_width: 20}, "
+            "{type: point, position: [0.5, 0.6, 0.6], intensity: 0.8}]",
+        ),
+    )
+}
 
 
 @pytest.fixture(scope="module", params=CASES, ids=[c[0] for c in CASES])
 def estimates(request):
     name, iters, spp, passes, mspp = request.param
-    scene = load_small(name, RES, RES)
+    base, extra = VARIANTS.get(name, (name, ()))
+    scene = load_small(base, RES, RES, extra)
     return name, ours(PathTracing, scene, iters, spp_per_wave=spp), mitsuba(scene, passes, mspp)
 
 
