@@ -98,7 +98,9 @@ def _legend(metric: str, factor: float) -> str:
 # --- scene page -------------------------------------------------------------------------------
 
 
-def _about_scene(scene_file: str | None, best: pd.DataFrame, methods: list[str]) -> str:
+def _about_scene(
+    scene_file: str | None, best: pd.DataFrame, methods: list[str], summary: pd.DataFrame
+) -> str:
     """What the scene file says it is for, beside the method that actually won."""
     if not scene_file or not Path(scene_file).is_file():
         return ""
@@ -116,6 +118,13 @@ def _about_scene(scene_file: str | None, best: pd.DataFrame, methods: list[str])
             last = best.sort_values("budget").iloc[-1]
             won = str(last.method)
             verdict = "as expected" if won in expected else "not among the expected"
+            cell = summary[
+                (summary.scene == last.scene)
+                & (summary.method == won)
+                & (summary.budget == last.budget)
+            ]
+            if not cell.empty and not bool(cell.ref_ok.iloc[0]):
+                verdict += '; <span class="flag">⚠</span> the reference limits this comparison'
             parts.append(f" <b>Won</b> at {e(T.budget_label(last.budget))}: {e(won)} ({verdict}).")
         parts.append("</p>")
     return "".join(parts)
@@ -152,7 +161,9 @@ def build_scene_page(spec: dict[str, Any]) -> None:
     ]
 
     best = T.best_methods(tabs["summary"], metric)
-    body.append(_about_scene(spec.get("scene_file"), best[best.scene == scene], methods))
+    body.append(
+        _about_scene(spec.get("scene_file"), best[best.scene == scene], methods, tabs["summary"])
+    )
 
     # reference quality
     body.append("<h2>Reference</h2>")
