@@ -70,17 +70,12 @@ def _split_sets(items: list[str], command: str = "render") -> tuple[list[str], d
     return overrides, params
 
 
-def _output(path: str) -> Path:
-    from .imageio import check_output_path
-
-    return check_output_path(path)
-
-
 def cmd_render(args: argparse.Namespace) -> int:
+    from .imageio import check_output_path
     from .progressive import RenderSettings, render
     from .scene import load_scene
 
-    out = _output(args.output)
+    out = check_output_path(args.output)
     overrides, params = _split_sets(args.set)
     scene = load_scene(args.scene, overrides)
     settings = RenderSettings(
@@ -103,11 +98,11 @@ def cmd_render(args: argparse.Namespace) -> int:
 
 
 def cmd_reference(args: argparse.Namespace) -> int:
-    from .imageio import write_image_and_sidecar
+    from .imageio import check_output_path, write_image_and_sidecar
     from .reference import render_reference
     from .scene import load_scene
 
-    out = _output(args.output)
+    out = check_output_path(args.output)
     overrides, _ = _split_sets(args.set, "reference")
     scene = load_scene(args.scene, overrides)
     image, info = render_reference(scene, args.spp, seed=args.seed, threads=args.threads)

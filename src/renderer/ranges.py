@@ -29,3 +29,14 @@ def number_problem(
     if hi is not None:
         bounds.append(f"{'<' if hi_open else '<='} {hi:g}")
     return "a number" + (" " + " and ".join(bounds) if bounds else "")
+
+
+def integer_problem(v: Any, lo: int | None = None, hi: int | None = None) -> str | None:
+    """None if ``v`` is an integer (not a bool) in [lo, hi], else what was expected, e.g.
+    ``"an integer >= 1 and <= 16384"``."""
+    ok = isinstance(v, int) and not isinstance(v, bool)
+    ok = ok and (lo is None or v >= lo) and (hi is None or v <= hi)
+    if ok:
+        return None
+    bounds = ([f">= {lo}"] if lo is not None else []) + ([f"<= {hi}"] if hi is not None else [])
+    return "an integer" + (" " + " and ".join(bounds) if bounds else "")

@@ -99,7 +99,7 @@ def _legend(metric: str, factor: float) -> str:
 
 
 def _about_scene(
-    scene_file: str | None, best: pd.DataFrame, methods: list[str], summary: pd.DataFrame
+    scene_file: str | None, scene: str, summary: pd.DataFrame, metric: str, methods: list[str]
 ) -> str:
     """What the scene file says it is for, beside the method that actually won."""
     if not scene_file or not Path(scene_file).is_file():
@@ -114,6 +114,7 @@ def _about_scene(
     if expected:
         shown = [m if m in methods else f"{m} (not in this study)" for m in expected]
         parts.append(f"<p><b>Expected to win:</b> {e(', '.join(shown))}.")
+        best = T.best_methods(summary[summary.scene == scene], metric)
         if not best.empty:
             last = best.sort_values("budget").iloc[-1]
             won = str(last.method)
@@ -160,10 +161,7 @@ def build_scene_page(spec: dict[str, Any]) -> None:
         f"Images shown are seed {spec['seed']}; tables and plots use every seed.</p>",
     ]
 
-    best = T.best_methods(tabs["summary"], metric)
-    body.append(
-        _about_scene(spec.get("scene_file"), best[best.scene == scene], methods, tabs["summary"])
-    )
+    body.append(_about_scene(spec.get("scene_file"), scene, tabs["summary"], metric, methods))
 
     # reference quality
     body.append("<h2>Reference</h2>")

@@ -7,7 +7,7 @@ from collections.abc import Iterable
 from typing import Any
 
 from ..errors import PgiError
-from ..ranges import number_problem
+from ..ranges import integer_problem, number_problem
 
 
 class MethodParams:
@@ -28,10 +28,10 @@ class MethodParams:
         """An integer parameter (>= lo when given)."""
         if key not in self.params:
             return default
-        v = self.params[key]
-        if not isinstance(v, int) or isinstance(v, bool) or (lo is not None and v < lo):
-            self._fail(key, "an integer" + (f" >= {lo}" if lo is not None else ""))
-        return v
+        expected = integer_problem(self.params[key], lo)
+        if expected:
+            self._fail(key, expected)
+        return self.params[key]
 
     def number(
         self,

@@ -20,7 +20,7 @@ import numpy as np
 import yaml
 
 from renderer.errors import PgiError
-from renderer.ranges import number_problem
+from renderer.ranges import integer_problem, number_problem
 from renderer.scene import primitives
 from renderer.scene import transform as xf
 from renderer.scene.model import (
@@ -332,9 +332,9 @@ class _Validator:
         return float(v)
 
     def integer(self, v: Any, path: KeyPath, lo: int, hi: int | None = None) -> int:
-        if not isinstance(v, int) or isinstance(v, bool) or v < lo or (hi is not None and v > hi):
-            rng = f">= {lo}" + (f" and <= {hi}" if hi is not None else "")
-            self.fail(path, f"expected an integer {rng}, got {_describe(v)}")
+        expected = integer_problem(v, lo, hi)
+        if expected:
+            self.fail(path, f"expected {expected}, got {_describe(v)}")
         return v
 
     def string(self, v: Any, path: KeyPath, choices: Sequence[str] | None = None) -> str:
