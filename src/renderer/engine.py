@@ -104,12 +104,6 @@ def _add_medium(core: _core.Scene, m: Medium, scene: Scene, majorant_cell: int) 
     return medium_id
 
 
-def scene_radius(triangles: np.ndarray) -> float:
-    """Half the diagonal of the triangles' bounding box (the core's scene_radius)."""
-    pts = triangles.reshape(-1, 3)
-    return float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)) / 2)
-
-
 def build_native_scene(scene: Scene, majorant_cell: int = MAJORANT_CELL) -> NativeScene:
     """Flatten shapes into one triangle list and describe everything else to the core.
     ``majorant_cell``: voxels per majorant-grid cell along each axis (benchmarks vary it)."""

@@ -126,6 +126,7 @@ static void add_scene(nb::module_ &m) {
         .def("finalize", &Scene::finalize)
         .def_prop_ro("triangle_count", [](const Scene &s) { return s.triangles.size(); })
         .def_prop_ro("ray_epsilon", [](const Scene &s) { return s.ray_epsilon; })
+        .def_prop_ro("scene_radius", [](const Scene &s) { return s.scene_radius; })
         // Probes for tests: estimators evaluated in isolation.
         .def("transmittance",
              [](const Scene &s, int medium, V3 origin, V3 direction, double tmax, uint64_t seed, int64_t n) {

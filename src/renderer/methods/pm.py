@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import _core
-from ..engine import build_native_scene, scene_radius
+from ..engine import build_native_scene
 from ..errors import PgiError
 from ..scene.model import Scene
 from ..tracer import EmbreeTracer, RayBatch
@@ -57,7 +57,7 @@ class PhotonMapping:
             raise PgiError(
                 f"method {self.id}: spp_per_iteration {spp} must divide the spp budget {spp_budget}"
             )
-        size = scene_radius(self.native.triangles)
+        size = self.native.core.scene_radius
         self.radius = p.number("radius", scale * size, lo=0, lo_open=True)
         self.volume_radius = p.number("volume_radius", scale * size, lo=0, lo_open=True)
         self.light_paths = LightPaths(

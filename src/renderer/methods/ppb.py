@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import _core
-from ..engine import build_native_scene, scene_radius
+from ..engine import build_native_scene
 from ..errors import PgiError
 from ..passes import trace_camera_wave
 from ..scene.model import Scene
@@ -87,7 +87,7 @@ class ProgressivePhotonBeams:
             raise PgiError(f"method ppb: spp_per_iteration {spp} must divide --spp {spp_budget}")
         self.native = build_native_scene(scene)
         self.tracer = EmbreeTracer(self.native.triangles, threads)
-        size = scene_radius(self.native.triangles)
+        size = self.native.core.scene_radius
         self.light_paths = LightPaths(
             self.native,
             self.tracer,
