@@ -84,3 +84,36 @@ def test_plan_resolves(tmp_path: Path) -> None:
     assert plan.budget_tags == ["0.5", "2", "4"]
     assert plan.scene_set_args("cbox") == ["--set", "film.width=8"]
     assert plan.pgi == ("echo",)
+
+
+def _fake_pgi(tmp_path: Path) -> str:
+    """A `pgi` whose `methods` lists pt, lt and mitsuba."""
+    script = tmp_path / "fake-pgi"
+    script.write_text("#!/bin/sh\nprintf 'pt  path tracing\\nlt  light tracing\\nmitsuba  x\\n'\n")
+    script.chmod(0o755)
+    return str(script)
+
+
+@pytest.mark.parametrize(
+    ("change", "expect"),
+    [
+        ({"methods": ["pt", "nosuch"]}, r"methods: unknown method\(s\) nosuch; .*pt, lt, mitsuba"),
+        ({"exclude_methods": ["ppt"]}, r"exclude_methods: unknown method\(s\) ppt"),
+        ({"method_args": {"sppm": ["--x"]}}, r"method_args: unknown method\(s\) sppm"),
+        ({"methods": ["pt"], "exclude_methods": ["pt"]}, r"no method left after exclude_methods"),
+        ({"methods": ["lt", "mitsuba"]}, r"baseline: 'pt' is not among the methods .*lt, mitsuba"),
+        ({"methods": "all", "exclude_methods": ["pt"]}, r"baseline: 'pt' is not among"),
+    ],
+)
+def test_plan_refuses_methods_it_cannot_run(tmp_path: Path, change: dict, expect: str) -> None:
+    cfg = {**GOOD, "scenes_dir": str(_scenes(tmp_path)), "pgi": _fake_pgi(tmp_path), **change}
+    with pytest.raises(PlanError, match=expect):
+        make_plan(cfg, tmp_path)
+
+
+def test_plan_accepts_a_baseline_among_its_methods(tmp_path: Path) -> None:
+    cfg = {**GOOD, "scenes_dir": str(_scenes(tmp_path)), "pgi": _fake_pgi(tmp_path)}
+    plan = make_plan(
+        {**cfg, "methods": "all", "exclude_methods": ["pt"], "baseline": "lt"}, tmp_path
+    )
+    assert plan.methods == ("lt", "mitsuba") and plan.baseline == "lt"

@@ -134,7 +134,7 @@ def test_tables_best_flags_and_speedup(tmp_path: Path) -> None:
     md = (tmp_path / "overview.md").read_text()
     assert "**1.15 ± 0.071**" in md and "⚠" in md
     html = (tmp_path / "overview.html").read_text()
-    assert 'class="best"' in html and "refbad" in html
+    assert 'class="best"' in html and "refbad" in html and "late" not in html
     for name in ("runs", "summary", "convergence", "time_to_error", "stats"):
         assert (tmp_path / f"{name}.csv").is_file()
     conv = tabs["convergence"].set_index(["method", "metric"])
@@ -142,6 +142,19 @@ def test_tables_best_flags_and_speedup(tmp_path: Path) -> None:
     assert conv.loc[("pt", "relmse"), "slope_ref_removed"] == pytest.approx(-1.0, abs=0.01)
     assert conv.loc[("pt", "relmse"), "points_ref_removed"] == 6
     assert np.isnan(conv.loc[("pt", "flip"), "slope_ref_removed"])  # no reference error known
+
+
+def test_late_snapshots_are_marked(tmp_path: Path) -> None:
+    """A cell whose snapshot came over 10 % after its budget is not equal time: marked."""
+    runs = _runs()
+    runs["render_seconds"] *= 1.09  # within the allowance: unmarked
+    runs.loc[(runs.method == "lt") & (runs.budget == 1.0), "render_seconds"] = 1.5
+    T.write_tables(runs, tmp_path, metric="relmse", baseline="pt")
+    md = (tmp_path / "overview.md").read_text()
+    late = [line for line in md.splitlines() if line.startswith("|") and "⏱" in line]
+    assert len(late) == 1 and late[0].startswith("| s | lt |") and "⏱ (1.5 s)" in late[0]
+    html = (tmp_path / "overview.html").read_text()
+    assert html.count('class="late"') == 1 and "snapshot at 1.5 s on average" in html
 
 
 @pytest.fixture(scope="module")
@@ -165,9 +178,11 @@ def report(tmp_path_factory: pytest.TempPathFactory) -> Path:
                 img = truth * (1 + (mi + 1) * 0.3 / float(b) * rng.standard_normal(truth.shape))
                 p = wd / m / f"s{seed}" / f"run.t{b}.exr"
                 write_exr(p, np.maximum(img, 0))
+                # pt's first snapshot comes 30 % late: the winners table must say so
+                late = 1.3 if (m, b) == ("pt", "1") else 1.0
                 write_json(
                     p.with_suffix(".json"),
-                    {"render_seconds": float(b), "threads": 2, "iterations": 3},
+                    {"render_seconds": late * float(b), "threads": 2, "iterations": 3},
                 )
                 paths.append(str(p))
             if seed == 1:
@@ -228,6 +243,9 @@ def test_report_files(report: Path) -> None:
     assert 'id="viewer"' in page and 'src="data/toy.js"' in page
     assert "A toy scene for the report test." in page and "bdpt (not in this study)" in page
     assert re.search(r"<b>Won</b> at [^:]+: (pt \(as expected|lt \(not among the expected)", page)
+    winners = index[index.index("Best method per scene") : index.index("Overview:")]
+    assert winners.count('class="late"') == 1 and "⏱ 1.3 s" in winners  # pt at 1 s
+    assert "not an equal-time comparison" in index
     for text in (index, page):  # nothing fetched from the network
         assert not re.search(r"(src|href)=[\"']?(https?:)?//", text)
     data = (report / "data" / "toy.js").read_text()

@@ -77,6 +77,11 @@ def study(tmp_path_factory: pytest.TempPathFactory) -> Path:
     for s in ("alpha", "beta"):
         (wd / "scenes" / s).mkdir(parents=True)
         (wd / "scenes" / s / "scene.yaml").write_text(f"# fake scene {s}\n")
+    # alpha reads an included file from another folder and an asset named there
+    (wd / "scenes" / "shared").mkdir()
+    (wd / "scenes" / "shared" / "box.yaml").write_text("shapes: [{type: mesh, file: box.ply}]\n")
+    (wd / "scenes" / "shared" / "box.ply").write_text("fake mesh\n")
+    (wd / "scenes" / "alpha" / "scene.yaml").write_text("include: ../shared/box.yaml\n")
     write_config(wd / "cfg.yaml", wd / "scenes")
     snakemake(wd, "--configfile", "cfg.yaml", env={"FAKE_PGI_METHODS": "pt,lt,sppm"})
     return wd
@@ -113,6 +118,37 @@ def test_rerun_does_nothing(study: Path) -> None:
     run = snakemake(study, "--configfile", "cfg.yaml", env=env)
     assert "Nothing to be done" in run.stdout + run.stderr
     assert {p: p.stat().st_mtime_ns for p in outputs} == before  # nothing rewritten
+
+
+def test_files_a_scene_reads_are_its_inputs(study: Path) -> None:
+    """Editing an included file, or an asset it names, reruns that scene's renders and
+    references (here alpha: 2 methods x 2 seeds, 2 halves); nothing else."""
+    env = {"FAKE_PGI_METHODS": "pt,lt,sppm"}
+    for name in ("box.yaml", "box.ply"):
+        f = study / "scenes" / "shared" / name
+        before = f.stat()
+        try:
+            f.write_text(f.read_text() + "# edited\n")
+            c = job_counts(snakemake(study, "--configfile", "cfg.yaml", "-n", env=env).stdout)
+            assert c.get("render") == 4 and c.get("reference_half") == 2, (name, c)
+        finally:
+            f.write_text(f.read_text().removesuffix("# edited\n"))
+            os.utime(f, ns=(before.st_atime_ns, before.st_mtime_ns))
+    dry = snakemake(study, "--configfile", "cfg.yaml", "-n", env=env)
+    assert "Nothing to be done" in dry.stdout + dry.stderr
+
+
+def test_analysis_code_is_an_input_of_the_analysis(study: Path) -> None:
+    """Comparisons, tables and report pages list the comparison code among their inputs, so
+    editing it reruns them (renders do not depend on it)."""
+    env = {"FAKE_PGI_METHODS": "pt,lt,sppm"}
+    args = ["--configfile", "cfg.yaml", "-n", "--forceall", "--printshellcmds"]
+    out = snakemake(study, *args, "--verbose", env=env).stdout
+    jobs = re.findall(r"rule (\w+):\n(.*?)(?:\n\n|\Z)", out, re.S)
+    assert jobs
+    for rule, body in jobs:
+        has_code = "src/compare/metrics.py" in body
+        assert has_code == (rule in ("compare", "tables", "report_scene", "report_index")), rule
 
 
 def test_new_method_and_scene_render_only_what_is_new(study: Path) -> None:

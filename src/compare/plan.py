@@ -144,13 +144,27 @@ def make_plan(config: dict[str, Any], root: str | Path, check_methods: bool = Tr
             raise PlanError("methods: 'all' but `pgi methods` lists no method")
     else:
         methods = [m for m in wanted if m not in exclude]
-        if check_methods:
-            unknown = [m for m in methods if m not in avail]
+        if not methods:
+            raise PlanError("methods: no method left after exclude_methods")
+    if check_methods or wanted == "all":
+        # A misspelt id would silently drop a method, its arguments or an exclusion.
+        for key, names in (
+            ("methods", [] if wanted == "all" else wanted),
+            ("exclude_methods", sorted(exclude)),
+            ("method_args", list(config.get("method_args") or {})),
+        ):
+            unknown = [m for m in names if m not in avail]
             if unknown:
                 raise PlanError(
-                    f"methods: unknown method(s) {', '.join(unknown)}; "
+                    f"{key}: unknown method(s) {', '.join(unknown)}; "
                     f"`pgi methods` lists: {', '.join(avail) or 'none'}"
                 )
+    baseline = str(config.get("baseline", "pt"))
+    if baseline not in methods:
+        raise PlanError(
+            f"baseline: '{baseline}' is not among the methods of this study "
+            f"({', '.join(methods)}); set `baseline:` to one of them"
+        )
 
     budgets = tuple(sorted(float(b) for b in config["budgets"]))
     tags = [budget_tag(b) for b in budgets]
@@ -172,7 +186,7 @@ def make_plan(config: dict[str, Any], root: str | Path, check_methods: bool = Tr
         seeds=tuple(int(s) for s in config["seeds"]),
         ref_seed=int(ref.get("seed", 1000000)),
         method_args={k: tuple(v) for k, v in (config.get("method_args") or {}).items()},
-        baseline=str(config.get("baseline", "pt")),
+        baseline=baseline,
         primary_metric=str(config.get("primary_metric", "relmse")),
         ref_quality_factor=float(config.get("ref_quality_factor", 10.0)),
         title=str(report.get("title", "pgi comparison")),

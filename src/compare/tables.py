@@ -93,12 +93,23 @@ def render_time(d: pd.DataFrame, column: str = "render_seconds") -> pd.Series:
     return d[column].where(d[column] > 0, d["budget"])
 
 
+# A snapshot is written at the first iteration end at or past its budget: a method whose
+# iterations are long overshoots. Beyond this factor a cell is marked as not equal-time.
+OVERSHOOT = 1.1
+
+
+def overshoot(render_seconds: float, budget: float) -> bool:
+    """True if a cell's mean render time exceeds its budget by more than OVERSHOOT."""
+    return bool(render_seconds > OVERSHOOT * budget)
+
+
 def best_methods(summary: pd.DataFrame, metric: str) -> pd.DataFrame:
     """The method with the lowest mean ``metric`` per scene and budget."""
     col = f"{metric}_mean"
     valid = summary.dropna(subset=[col])
     idx = valid.groupby(["scene", "budget"])[col].idxmin()
-    return valid.loc[idx, ["scene", "budget", "method", col]].reset_index(drop=True)
+    cols = ["scene", "budget", "method", col, "render_seconds_mean"]
+    return valid.loc[idx, [c for c in cols if c in valid]].reset_index(drop=True)
 
 
 def convergence_table(runs: pd.DataFrame, metrics: Sequence[str] = METRICS) -> pd.DataFrame:
@@ -235,9 +246,19 @@ def overview_cells(summary: pd.DataFrame, metric: str) -> list[dict]:
                 "mean": getattr(r, f"{metric}_mean"),
                 "best": (scene, r.budget, method) in best_set,
                 "ref_ok": bool(r.ref_ok),
+                "seconds": r.render_seconds_mean,
+                "late": overshoot(r.render_seconds_mean, r.budget),
             }
         out.append({"scene": scene, "method": method, "cells": cells})
     return out
+
+
+def late_mark(seconds: float, budget: float) -> str:
+    """HTML mark of a cell whose snapshot came well after its budget."""
+    return (
+        f' <span class="late" title="snapshot at {fmt(seconds)} s on average, budget '
+        f'{fmt(budget)} s: not equal time">⏱ {fmt(seconds)} s</span>'
+    )
 
 
 def overview_markdown(summary: pd.DataFrame, metric: str) -> str:
@@ -245,7 +266,8 @@ def overview_markdown(summary: pd.DataFrame, metric: str) -> str:
     head = ["scene", "method", *[budget_label(b) for b in budgets]]
     lines = [
         f"{METRIC_LABELS.get(metric, metric)}, mean ± std over seeds; **bold** = best per "
-        "scene and budget; ⚠ = reference error not well below this error",
+        "scene and budget; ⚠ = reference error not well below this error; ⏱ (s) = the "
+        f"snapshot came more than {OVERSHOOT:g}x after its budget (mean render seconds)",
         "",
         "| " + " | ".join(head) + " |",
         "|" + "|".join(["---"] * len(head)) + "|",
@@ -258,7 +280,8 @@ def overview_markdown(summary: pd.DataFrame, metric: str) -> str:
                 cells.append("")
                 continue
             t = f"**{c['text']}**" if c["best"] else c["text"]
-            cells.append(t if c["ref_ok"] else t + " ⚠")
+            t = t if c["ref_ok"] else t + " ⚠"
+            cells.append(t + f" ⏱ ({fmt(c['seconds'])} s)" if c["late"] else t)
         lines.append("| " + " | ".join([row["scene"], row["method"], *cells]) + " |")
     return "\n".join(lines) + "\n"
 
@@ -298,6 +321,8 @@ def overview_html(summary: pd.DataFrame, metric: str, link_scenes: bool = False)
                 cls.append("refbad")
                 title = ' title="reference error is not well below this error"'
             mark = ' <span class="flag">⚠</span>' if not c["ref_ok"] else ""
+            if c["late"]:
+                mark += late_mark(c["seconds"], b)
             parts.append(f'<td class="{" ".join(cls)}"{title}>{e(c["text"])}{mark}</td>')
         parts.append("</tr>")
     parts.append("</tbody></table>")

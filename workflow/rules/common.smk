@@ -1,14 +1,38 @@
 # Helpers shared by the rules: file layout and per-job parameters, all derived from PLAN.
 
 import shlex
+from pathlib import Path
+
+from renderer.scene.loader import scene_sources
+
+
+def _relative(path):
+    """Paths below the working directory are given relative to it, so that a copied or moved
+    project (results included) does not look changed to Snakemake."""
+    rel = os.path.relpath(path)
+    return str(path) if rel.startswith("..") else rel
 
 
 def scene_arg(wildcards):
-    return str(PLAN.scenes[wildcards.scene].path)
+    return _relative(PLAN.scenes[wildcards.scene].path)
 
 
-def scene_file(wildcards):
-    return str(PLAN.scenes[wildcards.scene].path / "scene.yaml")
+def scene_yaml(wildcards):
+    return _relative(PLAN.scenes[wildcards.scene].path / "scene.yaml")
+
+
+def scene_files(wildcards):
+    """The scene file, its includes and its assets: editing any of them reruns the scene."""
+    return [_relative(p) for p in scene_sources(PLAN.scenes[wildcards.scene].path)]
+
+
+# The analysis code: editing it reruns comparisons, tables and the report (cheap steps);
+# renderer code does not rerun renders (see docs/workflow.md).
+ANALYSIS_CODE = sorted(
+    _relative(p)
+    for p in Path(SRC, "compare").rglob("*")
+    if p.suffix in (".py", ".css", ".js") and "__pycache__" not in p.parts
+)
 
 
 def set_args(wildcards):

@@ -4,7 +4,7 @@
 
 rule reference_half:
     input:
-        scene=scene_file,
+        scene=scene_files,
     output:
         exr=f"{R}/reference/{{scene}}/half{{half}}.exr",
         json=f"{R}/reference/{{scene}}/half{{half}}.json",
@@ -13,14 +13,13 @@ rule reference_half:
         sets=set_args,
         spp=lambda w: PLAN.scenes[w.scene].reference_spp,
         seed=lambda w: PLAN.ref_seed + int(w.half),
-        pgi=PGI,
     threads: PLAN.ref_threads
     log:
         f"{R}/logs/reference/{{scene}}/half{{half}}.log",
     benchmark:
         f"{R}/benchmarks/reference/{{scene}}/half{{half}}.tsv"
     shell:
-        "{params.pgi} reference {params.scene:q} --spp {params.spp} --seed {params.seed}"
+        "{PGI} reference {params.scene:q} --spp {params.spp} --seed {params.seed}"
         " --threads {threads} {params.sets} -o {output.exr:q} > {log:q} 2>&1"
 
 

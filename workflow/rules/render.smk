@@ -6,7 +6,7 @@
 
 rule render:
     input:
-        scene=scene_file,
+        scene=scene_files,
     output:
         snapshots=[f"{R}/render/{{scene}}/{{method}}/s{{seed}}/run.t{t}.exr" for t in PLAN.budget_tags],
         sidecars=[f"{R}/render/{{scene}}/{{method}}/s{{seed}}/run.t{t}.json" for t in PLAN.budget_tags],
@@ -17,8 +17,9 @@ rule render:
         sets=set_args,
         snapshots=PLAN.snapshot_arg(),
         extra=lambda w: " ".join(shlex.quote(a) for a in PLAN.method_args.get(w.method, ())),
-        pgi=PGI,
-        # Snakemake does not rerun a job whose `threads:` changed; a param makes it.
+        # The configured count, whatever Snakemake grants (--cores below it would lower
+        # {threads}, and compare refuses runs with other counts); as a param, a change of it
+        # reruns the render (Snakemake ignores changes of `threads:`).
         nthreads=PLAN.threads,
     threads: PLAN.threads
     resources:
@@ -28,6 +29,6 @@ rule render:
     benchmark:
         f"{R}/benchmarks/render/{{scene}}/{{method}}/s{{seed}}.tsv"
     shell:
-        "{params.pgi} render {params.scene:q} --method {wildcards.method} --seed {wildcards.seed}"
-        " --threads {threads} --snapshots {params.snapshots} {params.sets} {params.extra}"
+        "{PGI} render {params.scene:q} --method {wildcards.method} --seed {wildcards.seed}"
+        " --threads {params.nthreads} --snapshots {params.snapshots} {params.sets} {params.extra}"
         " -o {output.final:q} > {log:q} 2>&1"

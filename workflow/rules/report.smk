@@ -9,7 +9,7 @@ def report_scene_spec(wildcards):
     return json.dumps(
         {
             "scene": s,
-            "scene_file": scene_file(wildcards),
+            "scene_file": scene_yaml(wildcards),
             "reports": REP,
             "tables": f"{REP}/tables",
             "ref": f"{R}/reference/{s}/ref.exr",
@@ -35,7 +35,8 @@ def report_scene_spec(wildcards):
 rule report_scene:
     input:
         tables=rules.tables.output,
-        scene=scene_file,
+        scene=scene_files,
+        code=ANALYSIS_CODE,
         ref=f"{R}/reference/{{scene}}/ref.exr",
         ref_json=f"{R}/reference/{{scene}}/ref.json",
         snapshots=lambda w: [
@@ -58,6 +59,7 @@ rule report_index:
     input:
         tables=rules.tables.output,
         pages=[f"{REP}/scene-{s}.html" for s in PLAN.scenes],
+        code=ANALYSIS_CODE,
         refs=[f"{R}/reference/{s}/ref.json" for s in PLAN.scenes],
     output:
         f"{REP}/index.html",

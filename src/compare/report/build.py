@@ -91,7 +91,10 @@ def _legend(metric: str, factor: float) -> str:
         "<b>Bold green</b>: lowest mean error for that scene and budget. "
         f'<span class="flag">⚠</span>: for at least one seed, the reference\'s own relMSE is '
         f"not {factor:g}x below that run's relMSE, so the reference may limit what the cell "
-        "can show.</p>"
+        "can show. "
+        f'<span class="late">⏱ s</span>: the snapshot came more than {T.OVERSHOOT:g}x after '
+        "its budget (a method whose iterations are long cannot stop sooner), so the cell is "
+        "not an equal-time comparison; the mark gives the mean render seconds.</p>"
     )
 
 
@@ -126,6 +129,9 @@ def _about_scene(
             ]
             if not cell.empty and not bool(cell.ref_ok.iloc[0]):
                 verdict += '; <span class="flag">⚠</span> the reference limits this comparison'
+            seconds = float(cell.render_seconds_mean.iloc[0]) if not cell.empty else 0.0
+            if T.overshoot(seconds, last.budget):
+                verdict += "; not equal time:" + T.late_mark(seconds, last.budget)
             parts.append(f" <b>Won</b> at {e(T.budget_label(last.budget))}: {e(won)} ({verdict}).")
         parts.append("</p>")
     return "".join(parts)
@@ -366,6 +372,9 @@ def build_index(spec: dict[str, Any]) -> None:
                 continue
             m = r.method.iloc[0]
             flag = "" if ok.get((s, m, b), True) else ' <span class="flag">⚠</span>'
+            seconds = float(r.render_seconds_mean.iloc[0])
+            if T.overshoot(seconds, b):
+                flag += T.late_mark(seconds, b)
             win.append(f"<td>{e(m)} ({T.fmt(r.iloc[0, 3])}){flag}</td>")
         win.append("</tr>")
     win.append("</tbody></table>")

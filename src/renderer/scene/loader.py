@@ -11,6 +11,7 @@ overrides, then validate and resolve into model objects.
 
 from __future__ import annotations
 
+import os
 import re
 from collections.abc import Iterable, Sequence
 from pathlib import Path
@@ -811,6 +812,46 @@ def load_scene(path: str | Path, overrides: Sequence[str] = ()) -> Scene:
         stresses=val.strings(doc.get("stresses", []), ("stresses",)),
         expected_winners=_method_names(val, doc.get("expected_winners", []), ("expected_winners",)),
     )  # fmt: skip
+
+
+def scene_sources(path: str | Path) -> list[Path]:
+    """Every file a scene reads: its scene file, the files it includes and the assets they name
+    (meshes, density grids, phase tables), each resolved as the loader resolves it. Files that
+    cannot be found or read are left out (loading the scene reports them); a workflow makes
+    these its inputs so that editing any of them reruns what depends on the scene."""
+    main = find_scene_file(path)
+    try:
+        doc = _read_yaml(main)
+    except PgiError:
+        return [main]
+    include = doc.get("include") or []
+    names = [include] if isinstance(include, str) else include
+    files = [main] + [Path(os.path.normpath(main.parent / n)) for n in names
+                      if isinstance(n, str) and (main.parent / n).is_file()]  # fmt: skip
+    found = list(files)
+    for file in files:
+        try:
+            part = doc if file == main else _read_yaml(file)
+        except PgiError:
+            continue
+        found += [a for a in _named_assets(part, file.parent) if a.is_file() and a not in found]
+    return found
+
+
+def _named_assets(node: Any, here: Path) -> Iterable[Path]:
+    """Paths a scene document names: ``file:`` values, and a grid's ``density`` given as a
+    .npy/.vdb file name."""
+    if isinstance(node, list):
+        for item in node:
+            yield from _named_assets(item, here)
+    elif isinstance(node, dict):
+        for key, value in node.items():
+            if isinstance(value, str) and (
+                key == "file" or (key == "density" and value.lower().endswith((".npy", ".vdb")))
+            ):
+                yield Path(os.path.normpath(here / value))
+            else:
+                yield from _named_assets(value, here)
 
 
 def _method_names(val: _Validator, v: Any, p: KeyPath) -> list[str]:
