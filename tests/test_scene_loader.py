@@ -11,7 +11,7 @@ import yaml
 
 from renderer.errors import PgiError
 from renderer.scene import load_scene, primitives
-from renderer.scene.loader import find_scene_file
+from renderer.scene.loader import find_scene_file, scene_sources
 
 REPO = Path(__file__).resolve().parents[1]
 SHIPPED = ["cbox", "cbox-fog", "cbox-grid", "cbox-glass"]
@@ -400,3 +400,29 @@ def test_a_broken_included_section_is_not_hidden(tmp_path):
 def test_lights_that_emit_nothing_do_not_count(tmp_path):
     path = write(tmp_path, BASE)
     expect_error(path, "lights", "no light that emits", ["shapes[1].emission=0"])
+
+
+def test_scene_sources_are_every_file_a_scene_reads(tmp_path: Path) -> None:
+    """The workflow's inputs of a scene: its file, its includes and the assets they name."""
+    scenes = find_scene_file("cbox").parents[1]
+
+    def names(scene: str) -> list[str]:
+        return [p.relative_to(scenes).as_posix() for p in scene_sources(scene)]
+
+    assert names("cbox-grid") == ["cbox-grid/scene.yaml", "cbox/box.yaml", "cbox-grid/density.npy"]
+    assert names("smoke") == ["smoke/scene.yaml", "smoke/plume.vdb"]
+    assert names("juice") == ["juice/scene.yaml", "cbox/box.yaml", "juice/juice.ply"]
+    # an asset named inside an included file is resolved next to that file; missing files and
+    # unreadable includes are left to the loader to report
+    (tmp_path / "lib").mkdir()
+    (tmp_path / "lib" / "parts.yaml").write_text(
+        "media: {g: {type: grid, density: {type: npy, file: d.npy}, albedo: 1}}\n"
+        "shapes: [{type: mesh, file: gone.ply}]\n"
+    )
+    (tmp_path / "lib" / "d.npy").write_bytes(b"")
+    (tmp_path / "s").mkdir()
+    (tmp_path / "s" / "scene.yaml").write_text("include: [../lib/parts.yaml, ../lib/none.yaml]\n")
+    found = [p.relative_to(tmp_path).as_posix() for p in scene_sources(tmp_path / "s")]
+    assert found == ["s/scene.yaml", "lib/parts.yaml", "lib/d.npy"]
+    (tmp_path / "s" / "scene.yaml").write_text("include: [\n")  # broken YAML
+    assert scene_sources(tmp_path / "s") == [tmp_path / "s" / "scene.yaml"]
