@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import yaml
 
+from parity import mitsuba
 from renderer.errors import PgiError
 from renderer.methods.mitsuba import MitsubaVolpath
 from renderer.mitsuba_env import find_libllvm, import_mitsuba
@@ -223,6 +224,42 @@ def test_fov_axis(tmp_path, fov_axis, fov, half_extent_x):
     img, _ = render_reference(scene, spp=64)
     lit = img.sum(axis=2).mean(axis=0)  # per column, radiance 1 in 3 channels
     assert np.all(lit[:15] == 0) and lit[15] == pytest.approx(3 * 0.8, abs=0.15)
+
+
+@pytest.mark.parametrize("distance", [1e-3, 1e6])
+def test_camera_rays_in_a_medium_reach_any_scale(tmp_path, distance):
+    """Mitsuba's clip planes follow the scene's size. Through an absorber of optical depth 1 a
+    lamp at any distance shows exp(-1) of its radiance; the fixed planes once used (1e-4 and
+    1e5 scene units) gave +11 % at distance 1e-3 (the first 1e-4 skipped) and black at 1e6."""
+    d = distance
+    doc = {
+        "camera": {"origin": [0, 0, 0], "target": [0, 0, d], "up": [0, 1, 0], "fov": 1,
+                   "medium": "absorber"},
+        "film": {"width": 4, "height": 4},
+        "media": {"absorber": {"type": "homogeneous", "sigma_t": 1 / d, "albedo": 0}},
+        "materials": {"boundary": {"type": "null"},
+                      "black": {"type": "diffuse", "reflectance": 0}},
+        "shapes": [
+            {"type": "cube", "material": "boundary", "interior": "absorber",
+             "transform": [{"scale": [2 * d] * 3}]},
+            {"type": "rectangle", "material": "black", "emission": 1.0, "transform": [
+                {"scale": [d, d, 1]}, {"rotate": {"axis": [0, 1, 0], "angle": 180}},
+                {"translate": [0, 0, d]}]},
+        ],
+    }  # fmt: skip
+    scene = load_scene(write_scene(tmp_path, doc))
+    sensor = to_mitsuba_dict(scene)["sensor"]
+    assert sensor["near_clip"] < 1e-4 * d < 1e3 * d < sensor["far_clip"]
+    estimate = mitsuba(scene, 4, 256).image_mean()  # 16k binary samples per channel
+    z = (estimate.mean.ravel() - np.exp(-1)) / estimate.stderr.ravel()
+    assert np.all(np.abs(z) < 4), (estimate.mean.ravel(), estimate.stderr.ravel())
+
+
+def test_only_rgb_mitsuba_variants_are_accepted():
+    """Spectral and mono variants turn RGB values into spectra: not the scene we render."""
+    for variant in ("scalar_spectral", "scalar_mono", "scalar_rgb_polarized"):
+        with pytest.raises(PgiError, match="needs an RGB variant"):
+            import_mitsuba(variant)
 
 
 def test_libllvm_search_finds_only_llvm_16_or_newer():

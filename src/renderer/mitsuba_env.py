@@ -3,7 +3,7 @@
 ``llvm_ad_rgb`` is ~2-3x faster than ``scalar_rgb`` but needs LLVM >= 16 (Debian's default
 LLVM 15 crashes Dr.Jit). We look for a suitable ``libLLVM`` in the standard library folders and
 point ``DRJIT_LIBLLVM_PATH`` at it before Dr.Jit starts; without one we use ``scalar_rgb``.
-``PGI_MITSUBA_VARIANT`` overrides the choice.
+``PGI_MITSUBA_VARIANT`` overrides the choice; only RGB variants (``*_rgb``) are accepted.
 """
 
 from __future__ import annotations
@@ -47,13 +47,20 @@ def import_mitsuba(variant: str | None = None) -> ModuleType:
     import mitsuba as mi
 
     if variant is not None:
+        if not variant.endswith("_rgb"):
+            # Spectral and mono variants upsample our RGB values to spectra (and emission to
+            # D65-based spectra): the reference would not be the scene we render.
+            raise PgiError(
+                f"Mitsuba variant {variant!r}: pgi needs an RGB variant (one ending in _rgb, "
+                "e.g. llvm_ad_rgb or scalar_rgb), as its scenes are RGB"
+            )
         if mi.variant() != variant:
             try:
                 mi.set_variant(variant)
             except Exception as e:
                 raise PgiError(f"cannot use Mitsuba variant {variant!r}: {e}") from e
         return mi
-    if mi.variant() is None:
+    if mi.variant() is None or not mi.variant().endswith("_rgb"):
         if "DRJIT_LIBLLVM_PATH" in os.environ and "llvm_ad_rgb" in mi.variants():
             try:
                 mi.set_variant("llvm_ad_rgb")

@@ -29,10 +29,23 @@ from renderer.scene.model import (
     SpotLight,
 )
 
-# Mitsuba starts camera rays at a near plane (default 0.01), skipping that segment and its
-# medium attenuation; a tiny near plane makes rays start (almost) at the camera as ours do.
-NEAR_CLIP = 1e-4
-FAR_CLIP = 1e5
+# Mitsuba starts camera rays at a near plane (default 0.01) and ends them at a far plane, both
+# in scene units: the segment before the near plane and its medium attenuation are skipped,
+# everything past the far plane is missed. Ours start at the camera and never end, so both
+# planes are set relative to the scene's reach from the camera (the ratio Mitsuba's float32
+# projection has always handled here: 1e9).
+NEAR_CLIP = 1e-5  # x reach
+FAR_CLIP = 1e4  # x reach
+
+
+def camera_reach(scene: Scene) -> float:
+    """Distance from the camera to the farthest triangle vertex, grid-box corner or light."""
+    cube = np.array([[x, y, z, 1.0] for x in (0, 1) for y in (0, 1) for z in (0, 1)])
+    points = [s.vertices for s in scene.shapes]
+    points += [(cube @ m.to_world.T)[:, :3] for m in scene.media.values() if m.to_world is not None]
+    points += [np.reshape(li.position, (1, 3)) for li in scene.lights if hasattr(li, "position")]
+    offsets = np.concatenate(points) - scene.camera.origin
+    return max(float(np.linalg.norm(offsets, axis=1).max()), 1e-30)
 
 
 def _rgb(c: RGB) -> dict[str, Any]:
@@ -168,13 +181,14 @@ def to_mitsuba_dict(scene: Scene) -> dict[str, Any]:
     media = {name: mi.load_dict(_medium(mi, m)) for name, m in scene.media.items()}
     bsdfs = {name: mi.load_dict(_bsdf(m)) for name, m in scene.materials.items()}
     cam = scene.camera
+    reach = camera_reach(scene)
     sensor: dict[str, Any] = {
         "type": "perspective",
         "fov": float(cam.fov),
         "fov_axis": cam.fov_axis,
         "to_world": _look_at(mi, cam.origin, cam.target, cam.up),
-        "near_clip": NEAR_CLIP,
-        "far_clip": FAR_CLIP,
+        "near_clip": NEAR_CLIP * reach,
+        "far_clip": FAR_CLIP * reach,
         "film": {
             "type": "hdrfilm",
             "width": scene.film.width,
