@@ -10,12 +10,20 @@ import pytest
 import yaml
 
 from parity import mitsuba
+from renderer import _core
+from renderer.engine import camera_basis
 from renderer.errors import PgiError
 from renderer.methods.mitsuba import MitsubaVolpath
 from renderer.mitsuba_env import find_libllvm, import_mitsuba
 from renderer.reference import derive_seed, render_reference, spp_per_pass
 from renderer.scene import load_scene
-from renderer.scene.mitsuba_export import grid_data, load_mitsuba_scene, to_mitsuba_dict
+from renderer.scene.mitsuba_export import (
+    grid_data,
+    load_mitsuba_scene,
+    phase_dict,
+    to_mitsuba_dict,
+)
+from renderer.scene.model import Phase
 
 mi = import_mitsuba()
 SHIPPED = ["cbox", "cbox-fog", "cbox-grid", "cbox-glass"]
@@ -260,6 +268,61 @@ def test_only_rgb_mitsuba_variants_are_accepted():
     for variant in ("scalar_spectral", "scalar_mono", "scalar_rgb_polarized"):
         with pytest.raises(PgiError, match="needs an RGB variant"):
             import_mitsuba(variant)
+
+
+@pytest.mark.parametrize("fov_axis", ["x", "y", "diagonal", "smaller", "larger"])
+@pytest.mark.parametrize(("width", "height"), [(16, 9), (9, 16)])
+def test_camera_rays_equal_mitsubas(fov_axis, width, height):
+    """Our camera ray through any film point equals Mitsuba's perspective sensor's, for every
+    fov_axis, on wide and tall films, with an `up` not perpendicular to the view."""
+    overrides = [
+        f"film.width={width}",
+        f"film.height={height}",
+        f"camera.fov_axis={fov_axis}",
+        "camera.fov=50",
+        "camera.up=[0.3, 1, 0.1]",
+        "camera.origin=[0.2, 0.9, 3.5]",
+    ]
+    scene = load_scene("cbox", overrides)
+    sensor = mi.load_dict(to_mitsuba_dict(scene)["sensor"])
+    forward, right, up = camera_basis(scene.camera, scene.film)
+    points = [(0, 0), (width, height), (width, 0), (0, height), (3.5, 7.25), (width / 2, 1)]
+    for fx, fy in points:
+        sample = mi.Point2f(fx / width, fy / height)
+        ray, _ = sensor.sample_ray(0.0, 0.5, sample, mi.Point2f(0.5, 0.5))
+        ours = forward + right * (2 * fx / width - 1) - up * (2 * fy / height - 1)
+        np.testing.assert_allclose(
+            np.array(ray.d).ravel(), ours / np.linalg.norm(ours), atol=1e-6, err_msg=(fx, fy)
+        )  # fmt: skip
+
+
+def test_phase_functions_equal_mitsubas():
+    """Our phase functions, evaluated where the exporter sends Mitsuba, give Mitsuba's values:
+    Rayleigh's normalisation, HG's sign of g and a tabulated table's orientation (its last
+    value is forward scattering) included. Ours take wo towards the previous vertex, as
+    Mitsuba's interaction wi."""
+    rng = np.random.default_rng(3)
+    wo = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
+    wi = rng.normal(size=(40, 3))
+    wi = np.concatenate([wi / np.linalg.norm(wi, axis=1)[:, None], [-wo, wo]])
+    values = np.array([0.2, 0.5, 1.0, 3.0, 9.0])  # strongly forward: a flipped table shows
+    cases = [
+        ({"type": "rayleigh"}, _core.eval_phase(2, 0.0, tuple(wo), wi)),
+        ({"type": "hg", "g": 0.6}, _core.eval_phase(1, 0.6, tuple(wo), wi)),
+        ({"type": "hg", "g": -0.3}, _core.eval_phase(1, -0.3, tuple(wo), wi)),
+        (phase_dict(Phase("tabulated", values=values)), _core.eval_phase_table(values, wo, wi)),
+    ]
+    ctx = mi.PhaseFunctionContext(None)
+    mei = mi.MediumInteraction3f()
+    mei.wi = mi.Vector3f(*map(float, wo))
+    mei.sh_frame = mi.Frame3f(mei.wi)
+    for plugin, ours in cases:
+        phase = mi.load_dict(plugin)
+        theirs = [
+            float(np.array(phase.eval_pdf(ctx, mei, mi.Vector3f(*map(float, w)))[0]).ravel()[0])
+            for w in wi
+        ]
+        np.testing.assert_allclose(theirs, ours, rtol=1e-5, err_msg=plugin["type"])
 
 
 def test_libllvm_search_finds_only_llvm_16_or_newer():

@@ -25,6 +25,8 @@ CASES = [
     ("cbox-grid", 40, 96, 40, 96),
     ("cbox-glass", 40, 96, 40, 96),
     ("cbox-delta-lights", 40, 96, 40, 96),
+    ("cbox-fog-depth-2", 40, 96, 40, 96),
+    ("cbox-fog-depth-3", 40, 96, 40, 96),
 ]
 # Conventions no shipped box scene uses: a spot light (cutoff_angle, beam_width and its
 # linear falloff between them), a point light's intensity, and an ideal mirror (the tall box);
@@ -40,7 +42,11 @@ VARIANTS = {
             "intensity: 6, cutoff_angle: 35, beam_width: 20}, "
             "{type: point, position: [0.5, 0.6, 0.6], intensity: 0.8}]",
         ),
-    )
+    ),
+    # Small max_depth with the fog's null boundary before the first scattering (a shared
+    # off-by-one would pass the lt-vs-pt depth tests), and a medium `scale` other than 1.
+    "cbox-fog-depth-2": ("cbox-fog", ("integrator.max_depth=2",)),
+    "cbox-fog-depth-3": ("cbox-fog", ("integrator.max_depth=3", "media.fog.scale=1.7")),
 }
 
 

@@ -69,7 +69,7 @@ def _bsdf(m: Material) -> dict[str, Any]:
     raise PgiError(f"material {m.name!r}: type {m.type!r} has no Mitsuba equivalent")
 
 
-def _phase(p: Phase) -> dict[str, Any]:
+def phase_dict(p: Phase) -> dict[str, Any]:
     if p.type == "isotropic":
         return {"type": "isotropic"}
     if p.type == "hg":
@@ -93,7 +93,11 @@ def grid_data(m: Medium) -> np.ndarray:
 
 
 def _medium(mi: Any, m: Medium) -> dict[str, Any]:
-    common = {"albedo": _const_volume(m.albedo), "scale": float(m.scale), "phase": _phase(m.phase)}
+    common = {
+        "albedo": _const_volume(m.albedo),
+        "scale": float(m.scale),
+        "phase": phase_dict(m.phase),
+    }
     if m.type == "homogeneous":
         return {"type": "homogeneous", "sigma_t": _const_volume(m.sigma_t), **common}
     if m.type != "grid":
