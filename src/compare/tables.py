@@ -257,7 +257,7 @@ def late_mark(seconds: float, budget: float) -> str:
     """HTML mark of a cell whose snapshot came well after its budget."""
     return (
         f' <span class="late" title="snapshot at {fmt(seconds)} s on average, budget '
-        f'{fmt(budget)} s: not equal time">⏱ {fmt(seconds)} s</span>'
+        f'{fmt(budget)} s: not equal time">at {fmt(seconds)} s</span>'
     )
 
 
@@ -266,8 +266,8 @@ def overview_markdown(summary: pd.DataFrame, metric: str) -> str:
     head = ["scene", "method", *[budget_label(b) for b in budgets]]
     lines = [
         f"{METRIC_LABELS.get(metric, metric)}, mean ± std over seeds; **bold** = best per "
-        "scene and budget; ⚠ = reference error not well below this error; ⏱ (s) = the "
-        f"snapshot came more than {OVERSHOOT:g}x after its budget (mean render seconds)",
+        "scene and budget; ⚠ = reference error not well below this error; (at … s) = the "
+        f"snapshot came more than {OVERSHOOT:g}x after its budget, at that mean render time",
         "",
         "| " + " | ".join(head) + " |",
         "|" + "|".join(["---"] * len(head)) + "|",
@@ -281,7 +281,7 @@ def overview_markdown(summary: pd.DataFrame, metric: str) -> str:
                 continue
             t = f"**{c['text']}**" if c["best"] else c["text"]
             t = t if c["ref_ok"] else t + " ⚠"
-            cells.append(t + f" ⏱ ({fmt(c['seconds'])} s)" if c["late"] else t)
+            cells.append(t + f" (at {fmt(c['seconds'])} s)" if c["late"] else t)
         lines.append("| " + " | ".join([row["scene"], row["method"], *cells]) + " |")
     return "\n".join(lines) + "\n"
 

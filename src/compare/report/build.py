@@ -92,9 +92,9 @@ def _legend(metric: str, factor: float) -> str:
         f'<span class="flag">⚠</span>: for at least one seed, the reference\'s own relMSE is '
         f"not {factor:g}x below that run's relMSE, so the reference may limit what the cell "
         "can show. "
-        f'<span class="late">⏱ s</span>: the snapshot came more than {T.OVERSHOOT:g}x after '
-        "its budget (a method whose iterations are long cannot stop sooner), so the cell is "
-        "not an equal-time comparison; the mark gives the mean render seconds.</p>"
+        f'<span class="late">at … s</span>: the snapshot came more than {T.OVERSHOOT:g}x after '
+        "its budget, at that mean render time (a method whose iterations are long cannot stop "
+        "sooner), so the cell is not an equal-time comparison.</p>"
     )
 
 
