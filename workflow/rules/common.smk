@@ -1,5 +1,6 @@
 # Helpers shared by the rules: file layout and per-job parameters, all derived from PLAN.
 
+import functools
 import shlex
 from pathlib import Path
 
@@ -21,9 +22,15 @@ def scene_yaml(wildcards):
     return _relative(PLAN.scenes[wildcards.scene].path / "scene.yaml")
 
 
+@functools.cache
+def _scene_sources(scene):
+    return tuple(_relative(p) for p in scene_sources(PLAN.scenes[scene].path))
+
+
 def scene_files(wildcards):
-    """The scene file, its includes and its assets: editing any of them reruns the scene."""
-    return [_relative(p) for p in scene_sources(PLAN.scenes[wildcards.scene].path)]
+    """The scene file, its includes and its assets: editing any of them reruns the scene.
+    Read once per scene (every job of the scene asks)."""
+    return list(_scene_sources(wildcards.scene))
 
 
 # The analysis code: editing it reruns comparisons, tables and the report (cheap steps);
