@@ -424,5 +424,6 @@ def test_scene_sources_are_every_file_a_scene_reads(tmp_path: Path) -> None:
     (tmp_path / "s" / "scene.yaml").write_text("include: [../lib/parts.yaml, ../lib/none.yaml]\n")
     found = [p.relative_to(tmp_path).as_posix() for p in scene_sources(tmp_path / "s")]
     assert found == ["s/scene.yaml", "lib/parts.yaml", "lib/d.npy"]
-    (tmp_path / "s" / "scene.yaml").write_text("include: [\n")  # broken YAML
-    assert scene_sources(tmp_path / "s") == [tmp_path / "s" / "scene.yaml"]
+    for broken in ("include: [\n", "include: 3\n", "include: {a: b}\n"):  # left to the loader
+        (tmp_path / "s" / "scene.yaml").write_text(broken)
+        assert scene_sources(tmp_path / "s") == [tmp_path / "s" / "scene.yaml"]

@@ -825,7 +825,7 @@ def scene_sources(path: str | Path) -> list[Path]:
     except PgiError:
         return [main]
     include = doc.get("include") or []
-    names = [include] if isinstance(include, str) else include
+    names = [include] if isinstance(include, str) else include if isinstance(include, list) else []
     files = [main] + [Path(os.path.normpath(main.parent / n)) for n in names
                       if isinstance(n, str) and (main.parent / n).is_file()]  # fmt: skip
     found = list(files)
