@@ -9,6 +9,7 @@
 # (methods: all = whatever `pgi methods` lists).
 
 import os
+import shlex
 import sys
 
 from snakemake.exceptions import WorkflowError
@@ -39,8 +40,8 @@ except PlanError as e:
 
 R = str(PLAN.results)
 REP = str(PLAN.reports)
-PY = sys.executable
-PGI = " ".join(PLAN.pgi)
+PY = shlex.quote(sys.executable)
+PGI = shlex.join(PLAN.pgi)
 
 # Timed renders never run concurrently with each other (unless a profile raises the limit).
 if "timed_render" not in workflow.global_resources:

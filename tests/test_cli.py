@@ -93,6 +93,7 @@ def test_methods_lists_pt_and_mitsuba():
     assert r.returncode == 0
     ids = [line.split()[0] for line in r.stdout.splitlines()]
     assert "pt" in ids and "mitsuba" in ids
+    assert r.stdout.splitlines()[-1] == "# not yet implemented: bdpt, vpl, vrl, vbl"
 
 
 BAD_SCENES = {

@@ -87,9 +87,12 @@ def test_plan_resolves(tmp_path: Path) -> None:
 
 
 def _fake_pgi(tmp_path: Path) -> str:
-    """A `pgi` whose `methods` lists pt, lt and mitsuba."""
+    """A `pgi` whose `methods` lists pt, lt and mitsuba, and announces bdpt and vrl."""
     script = tmp_path / "fake-pgi"
-    script.write_text("#!/bin/sh\nprintf 'pt  path tracing\\nlt  light tracing\\nmitsuba  x\\n'\n")
+    script.write_text(
+        "#!/bin/sh\nprintf 'pt  path tracing\\nlt  light tracing\\nmitsuba  x\\n"
+        "# not yet implemented: bdpt, vrl\\n'\n"
+    )
     script.chmod(0o755)
     return str(script)
 
@@ -103,6 +106,7 @@ def _fake_pgi(tmp_path: Path) -> str:
         ({"methods": ["pt"], "exclude_methods": ["pt"]}, r"no method left after exclude_methods"),
         ({"methods": ["lt", "mitsuba"]}, r"baseline: 'pt' is not among the methods .*lt, mitsuba"),
         ({"methods": "all", "exclude_methods": ["pt"]}, r"baseline: 'pt' is not among"),
+        ({"methods": ["pt", "bdpt"]}, r"methods: unknown method\(s\) bdpt"),  # cannot render
     ],
 )
 def test_plan_refuses_methods_it_cannot_run(tmp_path: Path, change: dict, expect: str) -> None:
@@ -117,3 +121,7 @@ def test_plan_accepts_a_baseline_among_its_methods(tmp_path: Path) -> None:
         {**cfg, "methods": "all", "exclude_methods": ["pt"], "baseline": "lt"}, tmp_path
     )
     assert plan.methods == ("lt", "mitsuba") and plan.baseline == "lt"
+    # methods announced but not implemented may be excluded or configured ahead of time
+    cfg.update(methods="all", exclude_methods=["pt", "bdpt"], method_args={"vrl": ["--x"]})
+    cfg.update(baseline="lt")
+    assert make_plan(cfg, tmp_path).methods == ("lt", "mitsuba")

@@ -234,11 +234,12 @@ def test_fov_axis(tmp_path, fov_axis, fov, half_extent_x):
     assert np.all(lit[:15] == 0) and lit[15] == pytest.approx(3 * 0.8, abs=0.15)
 
 
-@pytest.mark.parametrize("distance", [1e-3, 1e6])
-def test_camera_rays_in_a_medium_reach_any_scale(tmp_path, distance):
+@pytest.mark.parametrize(("distance", "far_light"), [(1e-3, False), (1e6, False), (1, True)])
+def test_camera_rays_in_a_medium_reach_any_scale(tmp_path, distance, far_light):
     """Mitsuba's clip planes follow the scene's size. Through an absorber of optical depth 1 a
     lamp at any distance shows exp(-1) of its radiance; the fixed planes once used (1e-4 and
-    1e5 scene units) gave +11 % at distance 1e-3 (the first 1e-4 skipped) and black at 1e6."""
+    1e5 scene units) gave +11 % at distance 1e-3 (the first 1e-4 skipped) and black at 1e6.
+    A (negligible) point light 1e4 away makes the scene's reach 1e4 times the medium's."""
     d = distance
     doc = {
         "camera": {"origin": [0, 0, 0], "target": [0, 0, d], "up": [0, 1, 0], "fov": 1,
@@ -255,6 +256,8 @@ def test_camera_rays_in_a_medium_reach_any_scale(tmp_path, distance):
                 {"translate": [0, 0, d]}]},
         ],
     }  # fmt: skip
+    if far_light:
+        doc["lights"] = [{"type": "point", "position": [0, 1e4, 0], "intensity": 1e-12}]
     scene = load_scene(write_scene(tmp_path, doc))
     sensor = to_mitsuba_dict(scene)["sensor"]
     assert sensor["near_clip"] < 1e-4 * d < 1e3 * d < sensor["far_clip"]

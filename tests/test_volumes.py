@@ -172,14 +172,14 @@ def test_residual_needs_fewer_lookups_and_less_variance_than_ratio():
 
 
 def test_residual_is_exact_and_free_in_constant_cells():
-    # Optical depth 1: the transmittance stays above the roulette threshold (0.25).
-    g = GridRef(np.full((8, 8, 8), 0.5, np.float32), affine(), 2.0)
+    # T = 0.2466, below the roulette threshold (0.25): no roulette where nothing is looked up
+    g = GridRef(np.full((8, 8, 8), 0.7, np.float32), affine(), 2.0)
     _core.configure_medium(g.scene, g.id, ESTIMATORS["residual"], 0.0)
     t, lookups = _core.transmittance_samples(
         g.scene, g.id, (0.5, 0.5, -1), (0, 0, 1), np.inf, 1, 100
     )
     assert lookups == 0
-    np.testing.assert_allclose(t, np.exp(-0.5 * 2.0), rtol=1e-6)
+    np.testing.assert_allclose(t, np.exp(-0.7 * 2.0), rtol=1e-6)
 
 
 def test_bounds_enclose_the_interpolated_density(grid):

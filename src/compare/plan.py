@@ -14,6 +14,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+# The comment line with which `pgi methods` announces methods not implemented yet.
+from renderer.cli import PLANNED_PREFIX
+
 
 class PlanError(ValueError):
     """A config that passed the schema but cannot be run (unknown scene or method, ...)."""
@@ -82,8 +85,9 @@ def resolve_pgi(setting: str) -> tuple[str, ...]:
     return (sys.executable, "-m", "renderer.cli")
 
 
-def available_methods(pgi: tuple[str, ...]) -> list[str]:
-    """Method ids printed by `pgi methods` (first token of each non-empty line)."""
+def available_methods(pgi: tuple[str, ...]) -> tuple[list[str], list[str]]:
+    """Method ids printed by `pgi methods` (first token of each non-comment line), and the ids
+    it announces as not yet implemented."""
     try:
         proc = subprocess.run(
             [*pgi, "methods"], capture_output=True, text=True, timeout=120, check=False
@@ -95,12 +99,15 @@ def available_methods(pgi: tuple[str, ...]) -> list[str]:
             f"`{' '.join(pgi)} methods` failed (exit {proc.returncode}): "
             f"{proc.stderr.strip() or proc.stdout.strip()}"
         )
-    ids = []
+    ids, planned = [], []
     for line in proc.stdout.splitlines():
+        if line.startswith(PLANNED_PREFIX):
+            planned += [m.strip() for m in line[len(PLANNED_PREFIX) :].split(",") if m.strip()]
+            continue
         tok = line.strip().split()
         if tok and not tok[0].startswith("#"):
             ids.append(tok[0])
-    return ids
+    return ids, planned
 
 
 def make_plan(config: dict[str, Any], root: str | Path, check_methods: bool = True) -> Plan:
@@ -135,9 +142,9 @@ def make_plan(config: dict[str, Any], root: str | Path, check_methods: bool = Tr
     wanted = config["methods"]
     exclude = set(config.get("exclude_methods") or ())
     if wanted == "all" or check_methods:
-        avail = available_methods(pgi)
+        avail, planned = available_methods(pgi)
     else:
-        avail = []
+        avail, planned = [], []
     if wanted == "all":
         methods = [m for m in avail if m not in exclude]
         if not methods:
@@ -147,13 +154,14 @@ def make_plan(config: dict[str, Any], root: str | Path, check_methods: bool = Tr
         if not methods:
             raise PlanError("methods: no method left after exclude_methods")
     if check_methods or wanted == "all":
-        # A misspelt id would silently drop a method, its arguments or an exclusion.
-        for key, names in (
-            ("methods", [] if wanted == "all" else wanted),
-            ("exclude_methods", sorted(exclude)),
-            ("method_args", list(config.get("method_args") or {})),
+        # A misspelt id would silently drop a method, its arguments or an exclusion. A method
+        # announced but not implemented may be excluded or configured ahead of its arrival.
+        for key, names, known in (
+            ("methods", [] if wanted == "all" else wanted, avail),
+            ("exclude_methods", sorted(exclude), avail + planned),
+            ("method_args", list(config.get("method_args") or {}), avail + planned),
         ):
-            unknown = [m for m in names if m not in avail]
+            unknown = [m for m in names if m not in known]
             if unknown:
                 raise PlanError(
                     f"{key}: unknown method(s) {', '.join(unknown)}; "

@@ -361,9 +361,10 @@ inline RGB transmittance(const Medium &m, const Vec3 &o, const Vec3 &d, double t
             traverse_cells(m, o, d, tmax, [&](double t0, double t1, double maj, double minor) {
                 if (maj <= 0) return true;
                 tr *= std::exp(-minor * (t1 - t0));  // the control, in closed form
-                if (!roulette_transmittance(tr, rng)) return false;
                 double residual = maj - minor;
                 if (!(residual > 0)) return true;  // constant cell: the control is exact
+                // Before this cell's lookups, not after the control: constant cells stay exact.
+                if (!roulette_transmittance(tr, rng)) return false;
                 double t = t0;
                 while (true) {
                     t -= std::log1p(-rng.next()) / residual;
