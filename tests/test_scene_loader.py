@@ -404,7 +404,7 @@ def test_lights_that_emit_nothing_do_not_count(tmp_path):
 
 def test_scene_sources_are_every_file_a_scene_reads(tmp_path: Path) -> None:
     """The workflow's inputs of a scene: its file, its includes and the assets they name."""
-    scenes = find_scene_file("cbox").parents[1]
+    scenes = find_scene_file("cbox").resolve().parents[1]
 
     def names(scene: str) -> list[str]:
         return [p.relative_to(scenes).as_posix() for p in scene_sources(scene)]
@@ -423,6 +423,12 @@ def test_scene_sources_are_every_file_a_scene_reads(tmp_path: Path) -> None:
     (tmp_path / "s").mkdir()
     (tmp_path / "s" / "scene.yaml").write_text("include: [../lib/parts.yaml, ../lib/none.yaml]\n")
     found = [p.relative_to(tmp_path).as_posix() for p in scene_sources(tmp_path / "s")]
+    assert found == ["s/scene.yaml", "lib/parts.yaml", "lib/d.npy"]
+    # through a symlinked scene folder, ".." is taken from the folder it points to (as the
+    # loader's file reads do)
+    (tmp_path / "links").mkdir()
+    (tmp_path / "links" / "s").symlink_to(tmp_path / "s")
+    found = [p.relative_to(tmp_path).as_posix() for p in scene_sources(tmp_path / "links" / "s")]
     assert found == ["s/scene.yaml", "lib/parts.yaml", "lib/d.npy"]
     for broken in ("include: [\n", "include: 3\n", "include: {a: b}\n"):  # left to the loader
         (tmp_path / "s" / "scene.yaml").write_text(broken)

@@ -11,7 +11,6 @@ overrides, then validate and resolve into model objects.
 
 from __future__ import annotations
 
-import os
 import re
 from collections.abc import Iterable, Sequence
 from pathlib import Path
@@ -819,14 +818,14 @@ def scene_sources(path: str | Path) -> list[Path]:
     (meshes, density grids, phase tables), each resolved as the loader resolves it. Files that
     cannot be found or read are left out (loading the scene reports them); a workflow makes
     these its inputs so that editing any of them reruns what depends on the scene."""
-    main = find_scene_file(path)
+    main = find_scene_file(path).resolve()  # resolved: ".." after a symlink means its target's
     try:
         doc = _read_yaml(main)
     except PgiError:
         return [main]
     include = doc.get("include") or []
     names = [include] if isinstance(include, str) else include if isinstance(include, list) else []
-    files = [main] + [Path(os.path.normpath(main.parent / n)) for n in names
+    files = [main] + [(main.parent / n).resolve() for n in names
                       if isinstance(n, str) and (main.parent / n).is_file()]  # fmt: skip
     found = list(files)
     for file in files:
@@ -849,7 +848,7 @@ def _named_assets(node: Any, here: Path) -> Iterable[Path]:
             if isinstance(value, str) and (
                 key == "file" or (key == "density" and value.lower().endswith((".npy", ".vdb")))
             ):
-                yield Path(os.path.normpath(here / value))
+                yield (here / value).resolve()
             else:
                 yield from _named_assets(value, here)
 
