@@ -28,7 +28,12 @@ os.environ["PYTHONPATH"] = os.pathsep.join(
 from compare.plan import PlanError, make_plan  # noqa: E402
 
 
-configfile: "configs/default.yaml"
+# The default study, unless a config is given: a config of one's own must not inherit the
+# default study's folders and overrides (missing keys get the schema's defaults instead).
+if not workflow.overwrite_configfiles:
+
+    configfile: "configs/default.yaml"
+
 
 
 validate(config, "configs/schema.yaml")

@@ -20,15 +20,18 @@ Three tables (numbers are reported, never asserted; timings are noisy on a share
    majorant), relMSE against the same reference.
 
 Run: python bench/bench_media.py [--time 5] [--res 64] [--threads 2]
+     [--cells 2 3 4 5 6] [--render-cells 2 4]   (majorant cell sizes to sweep)
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
 import time
 
 import numpy as np
 
+import renderer.methods.pt as pt_module
 from renderer import _core
 from renderer.engine import MAJORANT_CELL, build_native_scene
 from renderer.methods.mitsuba import MitsubaVolpath
@@ -139,19 +142,26 @@ def reference(scene, seconds: float, threads: int) -> tuple[np.ndarray, float]:
     return ref, rel_mse(halves[0], halves[1]) / 4
 
 
-def render_table(name: str, res: int, seconds: float, ref_seconds: float, threads: int):
+def render_table(name: str, res: int, seconds: float, ref_seconds: float, threads: int,
+                 cells: list[int]):  # fmt: skip
+    """Rows per estimator and majorant cell size (the reference uses the renderer's)."""
     base = [f"film.width={res}", f"film.height={res}"]
     ref_scene = load_scene(name, [*base, "integrator.estimator=residual"])
     ref, ref_err = reference(ref_scene, ref_seconds, threads)
     rows = []
-    for est in ESTIMATORS:
-        scene = load_scene(name, [*base, f"integrator.estimator={est}"])
-        m = PathTracing(scene, seed=1, threads=threads, params={"spp_per_wave": 2})
-        image, st, used = timed(m, seconds)
-        paths = st["spp"] * res * res
-        rows.append({"scene": name, "method": f"pt/{est}", "seconds": used, "spp": st["spp"],
-                     "lookups_per_path": st["density_lookups"] / max(paths, 1),
-                     "relMSE": rel_mse(image, ref), "ref_relMSE": ref_err})  # fmt: skip
+    for cell in cells:
+        # The cell size is no scene option: swap the builder pt uses (bench only).
+        pt_module.build_native_scene = functools.partial(build_native_scene, majorant_cell=cell)
+        for est in ESTIMATORS:
+            scene = load_scene(name, [*base, f"integrator.estimator={est}"])
+            m = PathTracing(scene, seed=1, threads=threads, params={"spp_per_wave": 2})
+            image, st, used = timed(m, seconds)
+            paths = st["spp"] * res * res
+            method = f"pt/{est}" if len(cells) == 1 else f"pt/{est} cell {cell}"
+            rows.append({"scene": name, "method": method, "seconds": used, "spp": st["spp"],
+                         "lookups_per_path": st["density_lookups"] / max(paths, 1),
+                         "relMSE": rel_mse(image, ref), "ref_relMSE": ref_err})  # fmt: skip
+    pt_module.build_native_scene = build_native_scene
     return rows, ref, ref_err
 
 
@@ -182,11 +192,26 @@ def main() -> None:
     ap.add_argument("--res", type=int, default=64)
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--scenes", nargs="+", default=["smoke", "cbox-grid"])
+    ap.add_argument(
+        "--cells",
+        nargs="+",
+        type=int,
+        default=None,
+        help="majorant cells (voxels) for table 1, 0 = global "
+        f"(default {MAJORANT_CELL}, x2, x4, global)",
+    )
+    ap.add_argument(
+        "--render-cells",
+        nargs="+",
+        type=int,
+        default=[MAJORANT_CELL],
+        help="majorant cells for the equal-time renders of table 2",
+    )
     args = ap.parse_args()
 
     print("1. Shadow-ray transmittance (200 rays from density-weighted points to the light;")
     print(f"   majorant cells of {MAJORANT_CELL} voxels are the renderer's; coarser to compare)\n")
-    cells = [MAJORANT_CELL, 2 * MAJORANT_CELL, 4 * MAJORANT_CELL, 0]
+    cells = args.cells or [MAJORANT_CELL, 2 * MAJORANT_CELL, 4 * MAJORANT_CELL, 0]
     rows = [r for s in args.scenes for c in cells for r in shadow_table(s, c)]
     columns = ["scene", "majorant_cell", "estimator", "lookups_per_ray", "variance", "us_per_ray",
                "efficiency", "efficiency_vs_delta", "rel_abs_error"]  # fmt: skip
@@ -195,10 +220,12 @@ def main() -> None:
     print(f"2./3. Equal-time renders, {args.res}x{args.res}, {args.time:g} s each\n")
     all_rows = []
     for s in args.scenes:
-        rows, ref, ref_err = render_table(s, args.res, args.time, args.ref_time, args.threads)
+        rows, ref, ref_err = render_table(s, args.res, args.time, args.ref_time, args.threads,
+                                          args.render_cells)  # fmt: skip
         if s == "smoke":
             rows.append(mitsuba_row(s, args.res, args.time, args.threads, ref, ref_err))
-            unbiased = [r for r in rows if r["method"] not in ("pt/raymarch", "mitsuba volpath")]
+            excluded = ("pt/raymarch", "mitsuba volpath")  # biased, or not ours
+            unbiased = [r for r in rows if not r["method"].startswith(excluded)]
             best = min(unbiased, key=lambda r: r["relMSE"])
             ratio = rows[-1]["relMSE"] / best["relMSE"]
             rows.append({"scene": s, "method": f"mitsuba/{best['method']}", "seconds": float("nan"),

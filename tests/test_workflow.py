@@ -182,6 +182,46 @@ def test_bad_config_fails_clearly(study: Path) -> None:
     assert p.returncode != 0 and "unknown method(s) nosuch" in p.stdout + p.stderr
 
 
+@pytest.mark.parametrize(
+    "over,key",
+    [
+        ({"budgets": [1, float("inf")]}, "budgets"),
+        ({"seeds": [1, 2**64]}, "seeds"),
+        ({"reference": {"spp": 16, "seed": 2**63 - 1}}, "reference.seed"),
+    ],
+    ids=["infinite-budget", "seed-too-large", "reference-seed-too-large"],
+)
+def test_plan_rejects_values_pgi_would_refuse(study: Path, over: dict, key: str) -> None:
+    write_config(study / "bad.yaml", study / "scenes", **over)
+    p = snakemake(study, "--configfile", "bad.yaml", "-n", check=False)
+    out = p.stdout + p.stderr
+    assert p.returncode != 0 and f"config: {key}: expected" in out, out
+
+
+def test_own_config_takes_schema_defaults_not_the_default_study(study: Path) -> None:
+    """Keys a config leaves out get the schema's defaults; configs/default.yaml (its results
+    folder, its film-size overrides) applies only when no config is given."""
+    cfg = {
+        "scenes_dir": str(study / "scenes"),
+        "pgi": f"{sys.executable} {FAKE}",
+        "scenes": ["beta"],
+        "methods": ["pt"],
+        "budgets": [1],
+        "seeds": [1],
+    }
+    (study / "min.yaml").write_text(yaml.safe_dump(cfg))
+    # As in a checkout: the default study's config where the Snakefile looks for it.
+    (study / "configs").mkdir()
+    shutil.copy(ROOT / "configs" / "default.yaml", study / "configs" / "default.yaml")
+    try:
+        args = ["--configfile", "min.yaml", "-n", "--forceall", "--printshellcmds"]
+        out = snakemake(study, *args, env={"FAKE_PGI_METHODS": "pt"}).stdout
+    finally:
+        shutil.rmtree(study / "configs")
+    assert "results/reference/beta/half0.exr" in out and "reports/index.html" in out
+    assert "results/default" not in out and "film.width" not in out
+
+
 def test_slurm_profile_dry_run_parses(study: Path) -> None:
     profile = ROOT / "configs" / "profiles" / "slurm"
     args = ["--configfile", "cfg.yaml", "--profile", str(profile), "-n", "--forceall"]

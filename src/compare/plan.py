@@ -6,6 +6,8 @@ Methods come from the config, or from `pgi methods` when the config says ``metho
 
 from __future__ import annotations
 
+import math
+
 import shlex
 import shutil
 import subprocess
@@ -175,6 +177,15 @@ def make_plan(config: dict[str, Any], root: str | Path, check_methods: bool = Tr
         )
 
     budgets = tuple(sorted(float(b) for b in config["budgets"]))
+    if not all(math.isfinite(b) for b in budgets):
+        raise PlanError(f"budgets: expected finite seconds, got {list(config['budgets'])}")
+    ref_seed = int(ref.get("seed", 1000000))
+    # `pgi` takes seeds in [0, 2^63); reference half h renders with ref_seed + h.
+    bad = [s for s in config["seeds"] if not 0 <= int(s) < 2**63]
+    if bad:
+        raise PlanError(f"seeds: expected integers in [0, 2^63), got {bad}")
+    if not 0 <= ref_seed < 2**63 - 1:
+        raise PlanError(f"reference.seed: expected an integer in [0, 2^63 - 1), got {ref_seed}")
     tags = [budget_tag(b) for b in budgets]
     if len(set(tags)) != len(tags):
         raise PlanError(f"budgets: two budgets have the same file tag: {tags}")
@@ -192,7 +203,7 @@ def make_plan(config: dict[str, Any], root: str | Path, check_methods: bool = Tr
         methods=tuple(methods),
         budgets=budgets,
         seeds=tuple(int(s) for s in config["seeds"]),
-        ref_seed=int(ref.get("seed", 1000000)),
+        ref_seed=ref_seed,
         method_args={k: tuple(v) for k, v in (config.get("method_args") or {}).items()},
         baseline=baseline,
         primary_metric=str(config.get("primary_metric", "relmse")),
