@@ -179,13 +179,57 @@ def test_bad_scene_gives_one_line_error_and_no_output(tmp_path, kind):
             ["reference", "cbox", "--spp", "1", "--set", "method.radius=1", "-o", "r.exr"],
             "apply to `pgi render` only",
         ),
+        (["reference", "cbox", "--spp", "1", "--threads", "999", "-o", "r.exr"], "core"),
+        (
+            ["render", "cbox", "--method", "pt", "--snapshots", "1,1.0000001", "-o", "x.exr"],
+            "two times share a file name",
+        ),
+        (["render", "cbox", "--method", "pt"], "required: -o/--output"),
     ],
 )
 def test_user_mistakes_are_one_line_errors(tmp_path, args, expected):
     r = pgi(*args, cwd=tmp_path)
     assert r.returncode != 0
     assert "Traceback" not in r.stderr and expected in r.stderr, r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert not list(tmp_path.iterdir())
+
+
+def test_images_that_are_not_whole_exr_files_are_refused(tmp_path):
+    """A truncated EXR (its pixels fail to decode) and a PNG named .exr: no metrics."""
+    from renderer.imageio import write_exr
+
+    rng = np.random.default_rng(0)
+    write_exr(tmp_path / "ref.exr", rng.uniform(size=(64, 64, 3)))
+    data = (tmp_path / "ref.exr").read_bytes()
+    (tmp_path / "cut.exr").write_bytes(data[: len(data) // 2])
+    import OpenImageIO as oiio
+
+    oiio.ImageBuf(oiio.ImageSpec(8, 8, 3, oiio.UINT8)).write(str(tmp_path / "p.png"))
+    (tmp_path / "p.png").rename(tmp_path / "png.exr")
+    for name, expected in (("cut.exr", "cannot read pixels"), ("png.exr", "found png")):
+        r = pgi("compare", str(tmp_path / name), str(tmp_path / "ref.exr"))
+        assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+        assert f"pgi: error: {tmp_path / name}: " in r.stderr and expected in r.stderr
+        assert r.stdout == "", r.stdout
+
+
+def test_interrupt_inside_mitsuba_exits_130(monkeypatch, capsys):
+    """Mitsuba's JIT turns Ctrl-C into a RuntimeError caused by the KeyboardInterrupt."""
+    from renderer import cli
+
+    def interrupted(args):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as e:
+            raise RuntimeError("drjit.custom(): error while calling the forward callback") from e
+
+    monkeypatch.setattr(cli, "cmd_validate", interrupted)
+    assert cli.main(["validate", "cbox"]) == 130
+    assert "interrupted" in capsys.readouterr().err
+    monkeypatch.setattr(cli, "cmd_validate", lambda args: 1 / 0)
+    with pytest.raises(ZeroDivisionError):  # a real bug still shows its traceback
+        cli.main(["validate", "cbox"])
 
 
 def test_compare_reports_metrics_as_json(tmp_path):
@@ -205,10 +249,17 @@ def test_compare_reports_metrics_as_json(tmp_path):
 def test_unwritable_outputs_are_refused_before_rendering(tmp_path):
     (tmp_path / "out" / "a.json").mkdir(parents=True)  # the sidecar's path is taken
     (tmp_path / "dir.exr").mkdir()
-    for target, expected in (("out/a.exr", "a.json is a directory"), ("dir.exr", "is a directory")):
-        r = pgi("render", "cbox", "--method", "pt", "--spp", "1", "-o", target, cwd=tmp_path)
+    (tmp_path / "s.t0.5.exr").mkdir()  # a snapshot's path is taken
+    for target, expected, more in (
+        ("out/a.exr", "a.json is a directory", []),
+        ("dir.exr", "is a directory", []),
+        ("s.exr", "s.t0.5.exr is a directory", ["--snapshots", "0.5"]),
+    ):
+        args = ["render", "cbox", "--method", "pt", "--spp", "1", *more, "-o", target]
+        r = pgi(*args, cwd=tmp_path)
         assert r.returncode == 2 and expected in r.stderr and "Traceback" not in r.stderr
-    assert sorted(p.name for p in tmp_path.rglob("*")) == ["a.json", "dir.exr", "out"]
+    names = ["a.json", "dir.exr", "out", "s.t0.5.exr"]
+    assert sorted(p.name for p in tmp_path.rglob("*")) == names
 
 
 def test_validate_version_reference_and_every_method_succeed(tmp_path):

@@ -7,7 +7,6 @@ Methods come from the config, or from `pgi methods` when the config says ``metho
 from __future__ import annotations
 
 import math
-
 import shlex
 import shutil
 import subprocess

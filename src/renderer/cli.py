@@ -72,10 +72,16 @@ def _split_sets(items: list[str], command: str = "render") -> tuple[list[str], d
 
 def cmd_render(args: argparse.Namespace) -> int:
     from .imageio import check_output_path
-    from .progressive import RenderSettings, render
+    from .progressive import RenderSettings, render, snapshot_path
     from .scene import load_scene
 
     out = check_output_path(args.output)
+    snapshot_files = [snapshot_path(out, s) for s in args.snapshots or ()]
+    if len(set(snapshot_files)) != len(snapshot_files):
+        raise PgiError(f"--snapshots {','.join(f'{s:g}' for s in args.snapshots)}: two times "
+                       "share a file name")  # fmt: skip
+    for path in snapshot_files:
+        check_output_path(path)
     overrides, params = _split_sets(args.set)
     scene = load_scene(args.scene, overrides)
     settings = RenderSettings(
@@ -99,10 +105,12 @@ def cmd_render(args: argparse.Namespace) -> int:
 
 def cmd_reference(args: argparse.Namespace) -> int:
     from .imageio import check_output_path, write_image_and_sidecar
+    from .progressive import check_threads
     from .reference import render_reference
     from .scene import load_scene
 
     out = check_output_path(args.output)
+    check_threads(args.threads)
     overrides, _ = _split_sets(args.set, "reference")
     scene = load_scene(args.scene, overrides)
     image, info = render_reference(scene, args.spp, seed=args.seed, threads=args.threads)
@@ -166,8 +174,15 @@ def cmd_validate(args: argparse.Namespace) -> int:
     return 0
 
 
+class _Parser(argparse.ArgumentParser):
+    """Usage mistakes are one line, like every other error (the usage is in --help)."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see `{self.prog} --help`)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="pgi", description="Progressive global illumination in participating media."
     )
     parser.add_argument("--version", action="version", version=f"pgi {__version__}")
@@ -226,6 +241,17 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _interrupted(error: BaseException) -> bool:
+    """Whether Ctrl-C caused this error (Mitsuba's JIT re-raises it as a RuntimeError)."""
+    seen = set()
+    while error is not None and id(error) not in seen:
+        if isinstance(error, KeyboardInterrupt):
+            return True
+        seen.add(id(error))
+        error = error.__cause__ or error.__context__
+    return False
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -242,6 +268,11 @@ def main(argv: list[str] | None = None) -> int:
         )
         return 2
     except KeyboardInterrupt:
+        print("pgi: interrupted", file=sys.stderr)
+        return 130
+    except Exception as e:
+        if not _interrupted(e):
+            raise
         print("pgi: interrupted", file=sys.stderr)
         return 130
 

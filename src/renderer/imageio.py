@@ -19,10 +19,15 @@ def read_exr(path: str | Path) -> np.ndarray:
         raise PgiError(f"{path}: no such image file")
     buf = oiio.ImageBuf(str(path))
     if buf.has_error:
-        raise PgiError(f"{path}: cannot read image: {buf.geterror()}")
+        raise PgiError(f"{path}: cannot read image: {_first_line(buf.geterror())}")
+    if buf.file_format_name != "openexr":  # metrics are defined on linear HDR values
+        raise PgiError(f"{path}: expected an OpenEXR image, found {buf.file_format_name or '?'}")
     pixels = buf.get_pixels(oiio.FLOAT)
-    if pixels is None or pixels.ndim != 3:
-        raise PgiError(f"{path}: cannot read pixels: {buf.geterror() or 'unexpected layout'}")
+    # A truncated or corrupt file is only noticed while its pixels are decoded.
+    if pixels is None or buf.has_error or pixels.ndim != 3:
+        raise PgiError(
+            f"{path}: cannot read pixels: {_first_line(buf.geterror()) or 'unexpected layout'}"
+        )
     channels = pixels.shape[2]
     if channels == 1:
         pixels = np.repeat(pixels, 3, axis=2)
@@ -31,6 +36,10 @@ def read_exr(path: str | Path) -> np.ndarray:
     else:
         raise PgiError(f"{path}: expected 1, 3 or 4 channels, found {channels}")
     return np.ascontiguousarray(pixels, dtype=np.float32)
+
+
+def _first_line(message: str) -> str:
+    return message.strip().splitlines()[0] if message.strip() else ""
 
 
 def write_exr(path: str | Path, image: np.ndarray, metadata: dict | None = None) -> None:
@@ -62,6 +71,8 @@ def write_exr(path: str | Path, image: np.ndarray, metadata: dict | None = None)
             raise PgiError(f"{path}: cannot write image: {out.geterror()}")
         out.close()
         os.replace(tmp, path)
+    except OSError as e:  # e.g. the path is a folder
+        raise PgiError(f"{path}: cannot write: {e.strerror or e}") from None
     finally:
         if tmp.exists():
             tmp.unlink()

@@ -47,6 +47,15 @@ def available_cores() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
+def check_threads(threads: int | None) -> None:
+    """More threads than cores would only make timings unfair: refused."""
+    if threads is not None and threads > available_cores():
+        raise PgiError(
+            f"--threads {threads} asked for, but only {available_cores()} core(s) are "
+            "available to this process"
+        )
+
+
 class Progress:
     """A bar on a terminal, plain lines otherwise (one every few seconds)."""
 
@@ -90,11 +99,7 @@ def render(
     """
     if settings.time_budget is None and settings.spp is None and not settings.snapshots:
         raise PgiError("give --time, --spp or --snapshots: the render needs a stopping rule")
-    if settings.threads > available_cores():
-        raise PgiError(
-            f"--threads {settings.threads} asked for, but only {available_cores()} core(s) are "
-            "available to this process"
-        )
+    check_threads(settings.threads)
     snapshots = sorted(float(s) for s in settings.snapshots)
     budget = settings.time_budget
     if budget is not None and snapshots and snapshots[-1] > budget:
