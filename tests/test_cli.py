@@ -193,6 +193,10 @@ def test_user_mistakes_are_one_line_errors(tmp_path, args, expected):
     assert "Traceback" not in r.stderr and expected in r.stderr, r.stderr
     assert len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert not list(tmp_path.iterdir())
+    if args[0] == "render" and "--set" in args:  # validate rejects what render rejects
+        scene_args = [args[1]] + [a for i, a in enumerate(args) if "--set" in args[i - 1 : i]]
+        v = pgi("validate", *[x for a in scene_args[1:] for x in ("--set", a)], scene_args[0])
+        assert v.returncode == 2 and expected in v.stderr, v.stderr
 
 
 def test_images_that_are_not_whole_exr_files_are_refused(tmp_path):
@@ -283,3 +287,21 @@ def test_validate_version_reference_and_every_method_succeed(tmp_path):
         info = json.loads(out.with_suffix(".json").read_text())
         assert info["method"] == method and info["render_seconds"] >= 0.3 and info["spp"] > 0
         assert read_exr(out).mean() > 0, method
+
+
+def test_spp_budget_is_met_exactly_by_every_method(tmp_path):
+    """--spp N stops every method at N samples per pixel (lt: light paths per pixel); an
+    iteration size that cannot add up to N is refused before rendering."""
+    from renderer.methods import method_ids
+
+    for method in method_ids():
+        out = tmp_path / f"{method}.exr"
+        r = pgi("render", "cbox", "--method", method, "--spp", "6", "-q", *small(), "-o", str(out))
+        assert r.returncode == 0, (method, r.stderr)
+        assert json.loads(out.with_suffix(".json").read_text())["spp"] == 6, method
+    for method, param in [("pt", "spp_per_wave=4"), ("mitsuba", "spp_per_iteration=4"),
+                          ("pm", "spp_per_iteration=4"), ("lt", "light_paths=100")]:  # fmt: skip
+        args = ["--spp", "6", "--set", f"method.{param}", *small(), "-o", str(tmp_path / "x.exr")]
+        r = pgi("render", "cbox", "--method", method, *args)
+        assert r.returncode == 2 and "must divide --spp" in r.stderr, (method, r.stderr)
+        assert not (tmp_path / "x.exr").exists()

@@ -76,6 +76,15 @@ def test_perlin_density_is_offset_noise_clipped():
     np.testing.assert_allclose(d, ref, rtol=1e-6)
 
 
+def test_perlin_density_bakes_in_slabs_alike(monkeypatch):
+    """Large grids are baked a slab at a time: the result does not depend on the slab size."""
+    import renderer.volumes as volumes
+
+    whole = perlin_density((9, 5, 3), octaves=2, seed=4)
+    monkeypatch.setattr(volumes, "_BAKE_POINTS", 2 * 5 * 3)  # slabs of 2 (and a last of 1)
+    np.testing.assert_array_equal(volumes.perlin_density((9, 5, 3), octaves=2, seed=4), whole)
+
+
 def test_step_density():
     d = step_density((4, 3, 2), axis=0, position=0.5, values=(0.25, 3.0))
     assert np.all(d[:2] == 0.25) and np.all(d[2:] == 3.0)
@@ -238,6 +247,11 @@ def test_scene_estimator_setting_reaches_the_core():
         ("integrator.estimator=woodcock", "integrator.estimator: expected one of: delta"),
         ("integrator.march_step=-1", "integrator.march_step"),
         ("media.fog.density={type: perlin}", "resolution: missing required key"),
+        (
+            "media.fog.density={type: perlin, resolution: 4, lacunarity: 1.0e300}",
+            "density.lacunarity: expected a number >= 0 and <= 16",
+        ),
+        ("media.fog.density={type: perlin, resolution: 4, gain: 1.0e300}", "density.gain"),
         ("media.fog.density={type: cloud, resolution: 4}", "density.type: expected one of"),
         ("media.fog.density={type: step, resolution: 4, values: [1]}", "expected [below, above]"),
         ("media.fog.density={type: vdb, file: nothing.vdb}", "density file not found"),

@@ -162,10 +162,12 @@ def cmd_methods(args: argparse.Namespace) -> int:
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
+    from .engine import build_native_scene
     from .scene import load_scene
 
     overrides, _ = _split_sets(args.set, "validate")
     scene = load_scene(args.scene, overrides)
+    build_native_scene(scene)  # what only the renderer's core checks (e.g. degenerate emitters)
     triangles = sum(len(s.faces) for s in scene.shapes)
     print(
         f"{scene.path}: ok ({len(scene.shapes)} shapes, {triangles} triangles, "

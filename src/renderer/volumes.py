@@ -168,9 +168,23 @@ def fbm(points: np.ndarray, octaves: int = 4, frequency: float = 4.0, lacunarity
 def perlin_density(resolution: tuple[int, int, int], octaves: int = 4, frequency: float = 4.0,
                    lacunarity: float = 2.0, gain: float = 0.5, offset: float = 0.0,
                    seed: int = 0) -> np.ndarray:  # fmt: skip
-    """max(0, offset + fbm) at the voxel centres of the unit cube, float32 [x, y, z]."""
-    d = offset + fbm(voxel_centres(resolution), octaves, frequency, lacunarity, gain, seed)
-    return np.maximum(d, 0.0).astype(np.float32)
+    """max(0, offset + fbm) at the voxel centres of the unit cube, float32 [x, y, z].
+
+    Baked in slabs of x so that float64 temporaries stay small (a 1024^3 grid at once
+    would need tens of GB)."""
+    nx, ny, nz = resolution
+    out = np.empty((nx, ny, nz), np.float32)
+    axes = [(np.arange(n) + 0.5) / n for n in resolution]
+    slab = max(1, _BAKE_POINTS // (ny * nz))
+    for x0 in range(0, nx, slab):
+        points = np.stack(np.meshgrid(axes[0][x0 : x0 + slab], *axes[1:], indexing="ij"), -1)
+        d = offset + fbm(points, octaves, frequency, lacunarity, gain, seed)
+        out[x0 : x0 + slab] = np.maximum(d, 0.0)
+    return out
+
+
+# Voxels baked at once by perlin_density (~0.5 GB of float64 temporaries).
+_BAKE_POINTS = 1 << 21
 
 
 def step_density(resolution: tuple[int, int, int], axis: int = 0, position: float = 0.5,

@@ -15,6 +15,7 @@ import numpy as np
 
 from .. import _core
 from ..engine import build_native_scene
+from ..errors import PgiError
 from ..passes import resolve_shadow_rays
 from ..scene.model import Scene
 from ..tracer import EmbreeTracer, RayBatch
@@ -28,6 +29,15 @@ _DEFAULT_MAX_RECORDS = 1 << 23
 _PARAMS = {"light_paths", "max_records"}
 
 
+def light_paths_for(pixels: int, spp_budget: int | None) -> int:
+    """Light paths per iteration: about _DEFAULT_PATHS; with an spp budget (light paths per
+    pixel) a whole number per pixel that divides it, so the run stops exactly there."""
+    if not spp_budget:
+        return _DEFAULT_PATHS
+    per_pixel = max(1, _DEFAULT_PATHS // pixels)
+    return pixels * max(d for d in range(1, min(per_pixel, spp_budget) + 1) if spp_budget % d == 0)
+
+
 class LightTracing:
     id = "lt"
     description = "light tracing: light paths connected to the camera"
@@ -36,7 +46,14 @@ class LightTracing:
         self, scene: Scene, *, seed: int, threads: int, params: dict, spp_budget: int | None = None
     ) -> None:
         p = MethodParams(self.id, params, _PARAMS)
-        paths = p.integer("light_paths", _DEFAULT_PATHS, lo=1)
+        pixels = scene.film.width * scene.film.height
+        paths = p.integer("light_paths", light_paths_for(pixels, spp_budget), lo=1)
+        if spp_budget and (spp_budget * pixels) % paths:
+            # lt's spp counts light paths per pixel: the budget must be whole iterations.
+            raise PgiError(
+                f"method lt: light_paths {paths} must divide --spp x pixels "
+                f"({spp_budget} x {pixels})"
+            )
         max_records = p.integer("max_records", _DEFAULT_MAX_RECORDS, lo=1)
         self.native = build_native_scene(scene)
         self.tracer = EmbreeTracer(self.native.triangles, threads)

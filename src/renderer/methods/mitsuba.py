@@ -37,7 +37,7 @@ class MitsubaVolpath:
         self, scene: Scene, *, seed: int, threads: int, params: dict, spp_budget: int | None = None
     ) -> None:
         p = MethodParams(self.id, params, {"spp_per_iteration"})
-        spp = p.integer("spp_per_iteration", default_spp(scene, spp_budget), lo=1)
+        spp = p.spp_per_iteration("spp_per_iteration", default_spp(scene, spp_budget), spp_budget)
         self.mi = import_mitsuba()
         set_threads(threads)
         self.scene = load_mitsuba_scene(scene)

@@ -9,6 +9,8 @@ from typing import Any
 from ..errors import PgiError
 from ..ranges import integer_problem, number_problem
 
+INT32_MAX = 2**31 - 1
+
 
 class MethodParams:
     def __init__(self, method: str, params: dict[str, Any], known: Iterable[str]) -> None:
@@ -24,11 +26,11 @@ class MethodParams:
     def _fail(self, key: str, expected: str) -> None:
         raise PgiError(f"method {self.method}: {key} must be {expected}, got {self.params[key]!r}")
 
-    def integer(self, key: str, default: int, lo: int | None = None) -> int:
-        """An integer parameter (>= lo when given)."""
+    def integer(self, key: str, default: int, lo: int | None = None, hi: int = INT32_MAX) -> int:
+        """An integer parameter in [lo, hi] (counts reach the native core as 32-bit ints)."""
         if key not in self.params:
             return default
-        expected = integer_problem(self.params[key], lo)
+        expected = integer_problem(self.params[key], lo, hi)
         if expected:
             self._fail(key, expected)
         return self.params[key]
@@ -49,3 +51,11 @@ class MethodParams:
         if expected:
             self._fail(key, expected)
         return float(self.params[key])
+
+    def spp_per_iteration(self, key: str, default: int, spp_budget: int | None) -> int:
+        """Samples per pixel of one iteration; with an spp budget it must divide it, so that
+        the run stops exactly at the budget."""
+        spp = self.integer(key, default, lo=1)
+        if spp_budget and spp_budget % spp:
+            raise PgiError(f"method {self.method}: {key} {spp} must divide --spp {spp_budget}")
+        return spp

@@ -48,15 +48,11 @@ class PhotonMapping:
     ) -> None:
         p = MethodParams(self.id, params, self._known)
         photons = p.integer("photons", DEFAULT_PHOTONS, lo=1)
-        spp = p.integer("spp_per_iteration", 1, lo=1)
+        spp = p.spp_per_iteration("spp_per_iteration", 1, spp_budget)
         max_records = p.integer("max_records", DEFAULT_MAX_RECORDS, lo=1)
         scale = p.number("radius_scale", DEFAULT_RADIUS_SCALE, lo=0, lo_open=True)
         self.native = build_native_scene(scene)
         self.tracer = EmbreeTracer(self.native.triangles, threads)
-        if spp_budget and spp_budget % spp:
-            raise PgiError(
-                f"method {self.id}: spp_per_iteration {spp} must divide the spp budget {spp_budget}"
-            )
         size = self.native.core.scene_radius
         self.radius = p.number("radius", scale * size, lo=0, lo_open=True)
         self.volume_radius = p.number("volume_radius", scale * size, lo=0, lo_open=True)

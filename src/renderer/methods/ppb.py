@@ -30,7 +30,6 @@ import numpy as np
 
 from .. import _core
 from ..engine import build_native_scene
-from ..errors import PgiError
 from ..passes import trace_camera_wave
 from ..scene.model import Scene
 from ..tracer import EmbreeTracer, RayBatch
@@ -74,7 +73,7 @@ class ProgressivePhotonBeams:
     ) -> None:
         p = MethodParams(self.id, params, _PARAMS)
         light_paths = p.integer("light_paths", DEFAULT_LIGHT_PATHS, lo=1)
-        spp = p.integer("spp_per_iteration", 1, lo=1)
+        spp = p.spp_per_iteration("spp_per_iteration", 1, spp_budget)
         alpha = p.number("alpha", DEFAULT_ALPHA, lo=0, hi=1, lo_open=True)
         radius = p.number("radius", DEFAULT_RADIUS, lo=0, lo_open=True)
         piece = p.number("piece_length", DEFAULT_PIECE_LENGTH, lo=0, lo_open=True)
@@ -83,8 +82,6 @@ class ProgressivePhotonBeams:
         # 0: path-traced surfaces
         surface_radius = p.number("surface_radius", DEFAULT_SURFACE_RADIUS, lo=0)
         surface_alpha = p.number("surface_alpha", DEFAULT_SURFACE_ALPHA, lo=0, hi=1, lo_open=True)
-        if spp_budget and spp_budget % spp:
-            raise PgiError(f"method ppb: spp_per_iteration {spp} must divide --spp {spp_budget}")
         self.native = build_native_scene(scene)
         self.tracer = EmbreeTracer(self.native.triangles, threads)
         size = self.native.core.scene_radius

@@ -42,7 +42,7 @@ class PathTracing:
     ) -> None:
         pixels = scene.film.width * scene.film.height
         p = MethodParams(self.id, params, {"spp_per_wave"})
-        spp_per_wave = p.integer("spp_per_wave", wave_spp(pixels, spp_budget), lo=1)
+        spp_per_wave = p.spp_per_iteration("spp_per_wave", wave_spp(pixels, spp_budget), spp_budget)
         self.native = build_native_scene(scene)
         self.tracer = EmbreeTracer(self.native.triangles, threads)
         self.kernel = _core.PathTracer(

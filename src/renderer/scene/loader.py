@@ -585,9 +585,10 @@ def _load_density(
         a = perlin_density(
             _resolution(val, d["resolution"], p + ("resolution",)),
             octaves=val.integer(d.get("octaves", 4), p + ("octaves",), 1, 16),
-            frequency=val.number(d.get("frequency", 4.0), p + ("frequency",), lo=0),
-            lacunarity=val.number(d.get("lacunarity", 2.0), p + ("lacunarity",), lo=0),
-            gain=val.number(d.get("gain", 0.5), p + ("gain",), lo=0),
+            # Upper bounds keep frequency * lacunarity^k and gain^k finite over 16 octaves.
+            frequency=val.number(d.get("frequency", 4.0), p + ("frequency",), lo=0, hi=1e4),
+            lacunarity=val.number(d.get("lacunarity", 2.0), p + ("lacunarity",), lo=0, hi=16),
+            gain=val.number(d.get("gain", 0.5), p + ("gain",), lo=0, hi=16),
             offset=val.number(d.get("offset", 0.0), p + ("offset",)),
             seed=val.integer(d.get("seed", 0), p + ("seed",), 0),
         )
