@@ -64,6 +64,12 @@ def mitsuba(scene: Scene, passes: int, spp: int, seed: int = 1000) -> Estimate:
     return Estimate(np.stack(images))
 
 
+# False-alarm rate of one check. The suite runs ~200 parity checks (a block check asserts
+# twice), so a change that re-rolls the random streams sees a false alarm somewhere with
+# probability ~2 %; a 3 % bias still fails every parity case (test_parity.py shows it).
+ALPHA = 1e-4
+
+
 @dataclass
 class Agreement:
     chi2: float
@@ -71,6 +77,7 @@ class Agreement:
     p_value: float
     max_abs_z: float
     z_limit: float  # Bonferroni bound on |z| at the same false-alarm rate
+    signed_z: float  # the z of largest magnitude, with its sign
 
     def __str__(self) -> str:
         return (
@@ -79,7 +86,7 @@ class Agreement:
         )
 
 
-def agreement(a: Estimate, b: Estimate, alpha: float = 1e-3) -> Agreement:
+def agreement(a: Estimate, b: Estimate, alpha: float = ALPHA) -> Agreement:
     """Two-sample z-scores of the means; chi-square of their squares and the largest |z|.
 
     The variances are estimated from K images each, so each difference over its standard
@@ -102,4 +109,6 @@ def agreement(a: Estimate, b: Estimate, alpha: float = 1e-3) -> Agreement:
     chi2 = float(np.sum(z**2))
     n = int(z.size)
     z_limit = float(stats.norm.isf(alpha / (2 * max(n, 1))))
-    return Agreement(chi2, n, float(stats.chi2.sf(chi2, n)), float(np.abs(z).max()), z_limit)
+    worst = float(z.flat[int(np.argmax(np.abs(z)))]) if n else 0.0
+    p_value = float(stats.chi2.sf(chi2, n))
+    return Agreement(chi2, n, p_value, float(np.abs(z).max()) if n else 0.0, z_limit, worst)

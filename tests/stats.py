@@ -25,7 +25,7 @@ import numpy as np
 from scipy import stats as sps
 
 # Overall false-rejection rate of one test file (before the Sidak correction).
-ALPHA = 0.01
+ALPHA = 1e-3
 # Mitsuba's threshold for pooling low-expectation bins.
 MIN_EXPECTED = 5.0
 

@@ -2,7 +2,7 @@
 
 Each renderer gives K independent images of the scene at 32 x 32; their means are compared
 with two-sample z-scores from measured variance (tests/parity.py), failing with probability
-about alpha = 1e-3 per check when both renderers are right.
+about ALPHA = 1e-4 per check (parity.py) when both renderers are right.
 
 - crepuscular: the image mean and 4 x 4 pixel blocks. Every shadow ray towards the sun crosses
   a window's null boundary, which is where Mitsuba 3.9 loses area lights (docs/methods.md);
@@ -16,10 +16,9 @@ from __future__ import annotations
 import pytest
 
 from conftest import load_small
-from parity import agreement, mitsuba, ours
+from parity import ALPHA, agreement, mitsuba, ours
 from renderer.methods.pt import PathTracing
 
-ALPHA = 1e-3
 RES = 32
 
 

@@ -248,6 +248,11 @@ def test_compare_reports_metrics_as_json(tmp_path):
     metrics = json.loads(r.stdout)
     assert metrics["mse"] == pytest.approx(np.mean((0.1 * ref.astype(np.float64)) ** 2), rel=1e-5)
     assert {"rmse", "relmse", "relmse_trimmed", "mape", "smape"} <= set(metrics)
+    # Below 3x3 pixels SSIM is undefined: null in the JSON (a bare NaN is not JSON)
+    write_exr(tmp_path / "ref1.exr", ref[:1, :1])
+    write_exr(tmp_path / "test1.exr", ref[:1, :1] * 1.1)
+    r = pgi("compare", str(tmp_path / "test1.exr"), str(tmp_path / "ref1.exr"), "--json")
+    assert r.returncode == 0 and json.loads(r.stdout)["one_minus_ssim"] is None, r.stdout
 
 
 def test_unwritable_outputs_are_refused_before_rendering(tmp_path):

@@ -9,22 +9,25 @@ from conftest import load_small
 from renderer.errors import PgiError
 from renderer.methods import get_method
 
+INT_1 = "an integer >= 1 and <= 2147483647"  # counts reach the core as 32-bit ints
+INT_0 = "an integer >= 0 and <= 2147483647"
 BAD = [
-    ("pt", "spp_per_wave", "abc", "an integer >= 1"),
-    ("pt", "spp_per_wave", 0, "an integer >= 1"),
-    ("pt", "spp_per_wave", 2.5, "an integer >= 1"),
-    ("lt", "light_paths", [1, 2], "an integer >= 1"),
-    ("lt", "max_records", -1, "an integer >= 1"),
-    ("pm", "photons", True, "an integer >= 1"),
+    ("pt", "spp_per_wave", 2**40, INT_1),
+    ("pt", "spp_per_wave", "abc", INT_1),
+    ("pt", "spp_per_wave", 0, INT_1),
+    ("pt", "spp_per_wave", 2.5, INT_1),
+    ("lt", "light_paths", [1, 2], INT_1),
+    ("lt", "max_records", -1, INT_1),
+    ("pm", "photons", True, INT_1),
     ("pm", "radius", float("nan"), "a number > 0"),
     ("pm", "radius_scale", "big", "a number > 0"),
     ("sppm", "alpha", 1.0, "a number > 0 and < 1"),
     ("sppm", "volume_alpha", None, "a number > 0 and < 1"),
-    ("ppb", "light_paths", [1, 2], "an integer >= 1"),
+    ("ppb", "light_paths", [1, 2], INT_1),
     ("ppb", "alpha", 1.5, "a number > 0 and <= 1"),
     ("ppb", "surface_radius", -0.1, "a number >= 0"),
-    ("ppb", "gather_bounces", -1, "an integer >= 0"),
-    ("mitsuba", "spp_per_iteration", "4", "an integer >= 1"),
+    ("ppb", "gather_bounces", -1, INT_0),
+    ("mitsuba", "spp_per_iteration", "4", INT_1),
 ]
 
 

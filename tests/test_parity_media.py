@@ -14,11 +14,10 @@ import pytest
 import yaml
 
 from conftest import SCENES, load_small
-from parity import agreement, mitsuba, ours
+from parity import ALPHA, agreement, mitsuba, ours
 from renderer.methods.pt import PathTracing
 from renderer.scene import load_scene
 
-ALPHA = 1e-3
 RES = 16
 # Independent images x spp each, for both renderers. The per-image spp must be high enough for
 # the per-image means to be near normal (the z-scores estimate the variance from 32 images):

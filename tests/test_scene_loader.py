@@ -286,6 +286,12 @@ def test_bad_overrides(tmp_path):
         load_scene(path, ["media.fog.scale=2"])
     fog = "media.fog={type: homogeneous, sigma_t: 1, albedo: 0.5}"
     assert load_scene(path, [fog]).media["fog"].sigma_t == (1.0, 1.0, 1.0)
+    # a key the override itself creates is blamed on the override, not on the file
+    msg = expect_error(path, "foo", "unknown key", overrides=["foo.bar=1"])
+    assert "override 'foo.bar=1'" in msg
+    # includes are merged before overrides: setting one would be silently ignored
+    with pytest.raises(PgiError, match="includes are merged before overrides"):
+        load_scene(path, ["include=other.yaml"])
 
 
 def test_include(tmp_path):

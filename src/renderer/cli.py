@@ -105,7 +105,7 @@ def cmd_render(args: argparse.Namespace) -> int:
 
 def cmd_reference(args: argparse.Namespace) -> int:
     from .imageio import check_output_path, write_image_and_sidecar
-    from .progressive import check_threads
+    from .progressive import Progress, check_threads
     from .reference import render_reference
     from .scene import load_scene
 
@@ -113,7 +113,11 @@ def cmd_reference(args: argparse.Namespace) -> int:
     check_threads(args.threads)
     overrides, _ = _split_sets(args.set, "reference")
     scene = load_scene(args.scene, overrides)
-    image, info = render_reference(scene, args.spp, seed=args.seed, threads=args.threads)
+    bar = Progress(None, args.spp, enabled=not args.quiet)
+    image, info = render_reference(
+        scene, args.spp, seed=args.seed, threads=args.threads, on_pass=bar.update
+    )
+    bar.update(info["render_seconds"], args.spp, force=True)
     info = dict(
         info,
         scene=scene.name,
@@ -140,8 +144,11 @@ def cmd_compare(args: argparse.Namespace) -> int:
         metrics = compare_images(test, ref)
     except ValueError as e:
         raise PgiError(f"{args.test} vs {args.reference}: {e}") from None
-    if args.json:
-        print(json.dumps(metrics, indent=2, sort_keys=True))
+    if args.json:  # undefined metrics (SSIM below 3x3 pixels) are null: NaN is not JSON
+        defined = {
+            k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in metrics.items()
+        }
+        print(json.dumps(defined, indent=2, sort_keys=True, allow_nan=False))
     else:
         for key, value in metrics.items():
             print(f"{key:>16}  {value:.6g}")
@@ -226,6 +233,7 @@ def build_parser() -> argparse.ArgumentParser:
     ref.add_argument(
         "-o", "--output", required=True, help="output .exr (a .json sidecar is written)"
     )
+    ref.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     ref.set_defaults(func=cmd_reference)
 
     c = sub.add_parser("compare", help="error metrics of an image against a reference")

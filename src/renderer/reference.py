@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import time
+from collections.abc import Callable
 
 import numpy as np
 
@@ -34,12 +35,16 @@ def spp_per_pass(scene: Scene, spp: int) -> int:
 
 
 def render_reference(
-    scene: Scene, spp: int, seed: int = 0, threads: int | None = None
+    scene: Scene,
+    spp: int,
+    seed: int = 0,
+    threads: int | None = None,
+    on_pass: Callable[[float, int], None] | None = None,
 ) -> tuple[np.ndarray, dict]:
     """Render ``scene`` with Mitsuba at ``spp`` samples per pixel.
 
     Returns the (H, W, 3) float64 image and an info dict (variant, passes, spp per pass,
-    load and render seconds, threads).
+    load and render seconds, threads). ``on_pass(seconds, spp_done)`` follows the passes.
     """
     if spp < 1:
         raise PgiError(f"reference: spp must be >= 1, got {spp}")
@@ -57,6 +62,8 @@ def render_reference(
         img = np.array(mi.render(mscene, spp=n, seed=derive_seed("reference", seed, k)))
         total += n * img.astype(np.float64)
         done += n
+        if on_pass:
+            on_pass(time.perf_counter() - t1, done)
     image = total / spp
     bad = int(np.count_nonzero(~np.isfinite(image)))
     if bad:

@@ -242,11 +242,17 @@ def _apply_override(doc: dict, text: str, origins: _Origins) -> None:
         int(m.group(2)) if m.group(2) else m.group(1)
         for m in re.finditer(rf"({_KEY})|\[(\d+)\]", key)
     ]
+    if tokens[0] == "include":
+        raise PgiError(
+            f"override {text!r}: includes are merged before overrides apply; "
+            "name the file in the scene's `include` instead"
+        )
     try:
         value = parse_yaml_value(raw)
     except yaml.YAMLError as e:
         raise PgiError(f"override {text!r}: value is not valid YAML") from e
     node: Any = doc
+    created: list[tuple] = []  # mappings the override makes: errors there are the override's
     for n, tok in enumerate(tokens):
         last = n == len(tokens) - 1
         if isinstance(node, dict) and isinstance(tok, str):
@@ -259,6 +265,8 @@ def _apply_override(doc: dict, text: str, origins: _Origins) -> None:
                     f"(it has: {known})"
                 )
             else:
+                if tok not in node:
+                    created.append(tuple(tokens[: n + 1]))
                 node = node.setdefault(tok, {})
         elif isinstance(node, list) and isinstance(tok, int) and tok < len(node):
             if last:
@@ -268,7 +276,8 @@ def _apply_override(doc: dict, text: str, origins: _Origins) -> None:
         else:
             missing = format_path(tokens[: n + 1])
             raise PgiError(f"override {text!r}: {missing} does not exist in the scene")
-    origins.add(tuple(tokens), origins.main, tuple(tokens), f" (override {text!r})")
+    for path in [*created, tuple(tokens)]:
+        origins.add(path, origins.main, path, f" (override {text!r})")
 
 
 # --------------------------------------------------------------------------- validation
