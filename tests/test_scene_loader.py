@@ -292,6 +292,11 @@ def test_bad_overrides(tmp_path):
     # includes are merged before overrides: setting one would be silently ignored
     with pytest.raises(PgiError, match="includes are merged before overrides"):
         load_scene(path, ["include=other.yaml"])
+    # a scene that includes itself says so
+    doc = yaml.safe_load(path.read_text())
+    doc["include"] = path.name
+    path.write_text(yaml.safe_dump(doc))
+    expect_error(path, "include[0]", "a scene cannot include itself")
 
 
 def test_include(tmp_path):

@@ -184,6 +184,8 @@ def _merge_includes(main: Path, doc: dict, origins: _Origins) -> dict:
         file = main.parent / name
         if not file.is_file():
             origins.fail(("include", n), f"included file not found: {file}")
+        if file.resolve() == main.resolve():
+            origins.fail(("include", n), "a scene cannot include itself")
         sources.append((file, _read_yaml(file)))
     sources.append((main, doc))
     merged: dict[str, Any] = {}
