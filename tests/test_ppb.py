@@ -26,7 +26,7 @@ r_i = r_1 i^(alpha - 1), so its error is variance plus a shrinking bias. The tes
   gather_bounces=1) and a sun whose light paths enter the fog through null windows
   (crepuscular).
 
-Everything runs on 16 x 16 films, about a minute of CPU time in all.
+Everything runs on 16 x 16 films, about a minute of wall time in all.
 """
 
 from __future__ import annotations
