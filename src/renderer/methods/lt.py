@@ -20,7 +20,7 @@ from ..passes import resolve_shadow_rays
 from ..scene.model import Scene
 from ..tracer import EmbreeTracer, RayBatch
 from .lightpath import LightPaths
-from .params import MethodParams
+from .params import MethodParams, budget_divisor
 
 _DEFAULT_PATHS = 1 << 16
 # Vertices one iteration may record: the memory bound. Each costs about 270 bytes with its
@@ -34,8 +34,7 @@ def light_paths_for(pixels: int, spp_budget: int | None) -> int:
     pixel) a whole number per pixel that divides it, so the run stops exactly there."""
     if not spp_budget:
         return _DEFAULT_PATHS
-    per_pixel = max(1, _DEFAULT_PATHS // pixels)
-    return pixels * max(d for d in range(1, min(per_pixel, spp_budget) + 1) if spp_budget % d == 0)
+    return pixels * budget_divisor(max(1, _DEFAULT_PATHS // pixels), spp_budget)
 
 
 class LightTracing:

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from renderer.methods.params import MethodParams
+from renderer.methods.params import MethodParams, budget_divisor
 from renderer.mitsuba_env import import_mitsuba, set_threads
 from renderer.reference import derive_seed
 from renderer.scene.mitsuba_export import load_mitsuba_scene
@@ -23,10 +23,9 @@ _TARGET_SAMPLES = 1 << 16
 
 def default_spp(scene: Scene, spp_budget: int | None) -> int:
     """~65k samples per iteration, and a divisor of the spp budget so the budget is met exactly."""
-    spp = max(1, _TARGET_SAMPLES // (scene.film.width * scene.film.height))
-    if spp_budget:
-        spp = max(d for d in range(1, min(spp, spp_budget) + 1) if spp_budget % d == 0)
-    return spp
+    return budget_divisor(
+        max(1, _TARGET_SAMPLES // (scene.film.width * scene.film.height)), spp_budget
+    )
 
 
 class MitsubaVolpath:

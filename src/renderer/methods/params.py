@@ -12,6 +12,14 @@ from ..ranges import integer_problem, number_problem
 INT32_MAX = 2**31 - 1
 
 
+def budget_divisor(wanted: int, spp_budget: int | None) -> int:
+    """Samples per pixel per iteration: ``wanted``, lowered to the largest divisor of the spp
+    budget not above it, so that whole iterations meet the budget exactly."""
+    if not spp_budget:
+        return wanted
+    return max(d for d in range(1, min(wanted, spp_budget) + 1) if spp_budget % d == 0)
+
+
 class MethodParams:
     def __init__(self, method: str, params: dict[str, Any], known: Iterable[str]) -> None:
         known = set(known)

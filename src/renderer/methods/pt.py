@@ -18,7 +18,7 @@ from ..engine import build_native_scene
 from ..passes import trace_camera_wave
 from ..scene.model import Scene
 from ..tracer import EmbreeTracer, RayBatch
-from .params import MethodParams
+from .params import MethodParams, budget_divisor
 
 # Paths per wave: enough to amortise the Python passes over the native kernels.
 _TARGET_WAVE_PATHS = 1 << 16
@@ -27,10 +27,7 @@ _TARGET_WAVE_PATHS = 1 << 16
 def wave_spp(pixels: int, spp_budget: int | None) -> int:
     """Samples per pixel in one wave: enough paths to amortise the passes, and a
     divisor of the spp budget so that a budget is met exactly."""
-    spp = max(1, math.ceil(_TARGET_WAVE_PATHS / pixels))
-    if spp_budget:
-        spp = max(d for d in range(1, min(spp, spp_budget) + 1) if spp_budget % d == 0)
-    return spp
+    return budget_divisor(max(1, math.ceil(_TARGET_WAVE_PATHS / pixels)), spp_budget)
 
 
 class PathTracing:
