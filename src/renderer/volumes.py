@@ -111,10 +111,15 @@ def write_vdb(path: str | Path, density_xyz: np.ndarray, voxel_size: float,
 # --------------------------------------------------------------------------- procedural
 
 
-def voxel_centres(resolution: tuple[int, int, int]) -> np.ndarray:
-    """Unit-cube coordinates of every voxel centre, shape (X, Y, Z, 3)."""
-    axes = [(np.arange(n) + 0.5) / n for n in resolution]
-    return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
+def axis_centres(n: int) -> np.ndarray:
+    """Unit-interval coordinates of n voxel centres, (i + 0.5) / n (Mitsuba's convention)."""
+    return (np.arange(n) + 0.5) / n
+
+
+def voxel_centres(resolution: tuple[int, int, int], xs: slice = slice(None)) -> np.ndarray:
+    """Unit-cube coordinates of the voxel centres (of the x columns ``xs``), shape (X, Y, Z, 3)."""
+    axes = [axis_centres(n) for n in resolution]
+    return np.stack(np.meshgrid(axes[0][xs], *axes[1:], indexing="ij"), axis=-1)
 
 
 # The 12 edge directions of a cube, padded to 16 by repeating four (Perlin 2002).
@@ -174,12 +179,11 @@ def perlin_density(resolution: tuple[int, int, int], octaves: int = 4, frequency
     would need tens of GB)."""
     nx, ny, nz = resolution
     out = np.empty((nx, ny, nz), np.float32)
-    axes = [(np.arange(n) + 0.5) / n for n in resolution]
     slab = max(1, _BAKE_POINTS // (ny * nz))
     for x0 in range(0, nx, slab):
-        points = np.stack(np.meshgrid(axes[0][x0 : x0 + slab], *axes[1:], indexing="ij"), -1)
-        d = offset + fbm(points, octaves, frequency, lacunarity, gain, seed)
-        out[x0 : x0 + slab] = np.maximum(d, 0.0)
+        xs = slice(x0, x0 + slab)
+        d = offset + fbm(voxel_centres(resolution, xs), octaves, frequency, lacunarity, gain, seed)
+        out[xs] = np.maximum(d, 0.0)
     return out
 
 
@@ -191,8 +195,13 @@ def step_density(resolution: tuple[int, int, int], axis: int = 0, position: floa
                  values: tuple[float, float] = (0.0, 1.0)) -> np.ndarray:  # fmt: skip
     """values[0] where the voxel centre's unit-cube coordinate along ``axis`` is below
     ``position``, values[1] from there on; float32 [x, y, z]."""
-    c = voxel_centres(resolution)[..., axis]
-    return np.where(c < position, values[0], values[1]).astype(np.float32)
+    # One coordinate per voxel along `axis`, broadcast: no (X, Y, Z, 3) array (tens of GB at
+    # the largest grids).
+    shape = [1, 1, 1]
+    shape[axis] = resolution[axis]
+    c = axis_centres(resolution[axis]).reshape(shape)
+    step = np.where(c < position, values[0], values[1]).astype(np.float32)
+    return np.ascontiguousarray(np.broadcast_to(step, tuple(resolution)))
 
 
 # --------------------------------------------------------------------------- Lorenz-Mie

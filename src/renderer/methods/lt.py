@@ -68,7 +68,7 @@ class LightTracing:
         )
         self.kernel = _core.LightTracer(self.native.core, seed, threads)
         self.connections = RayBatch(paths)
-        self.pixels = scene.film.width * scene.film.height
+        self.pixels = pixels
         self.iterations = 0
 
     def _ensure_capacity(self, n: int) -> None:
