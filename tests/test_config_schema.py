@@ -68,7 +68,7 @@ def _scenes(tmp_path: Path) -> Path:
 def test_plan_unknown_scene(tmp_path: Path) -> None:
     cfg = {**GOOD, "scenes": ["nosuch"], "scenes_dir": str(_scenes(tmp_path))}
     with pytest.raises(PlanError, match="no scene 'nosuch'.*known scenes: cbox"):
-        make_plan(cfg, tmp_path, check_methods=False)
+        make_plan(cfg, tmp_path, check_methods=False, check_scenes=False)
 
 
 def test_plan_resolves(tmp_path: Path) -> None:
@@ -80,7 +80,7 @@ def test_plan_resolves(tmp_path: Path) -> None:
         "set": ["film.width=8"],
         "pgi": "echo",
     }
-    plan = make_plan(cfg, tmp_path, check_methods=False)
+    plan = make_plan(cfg, tmp_path, check_methods=False, check_scenes=False)
     assert plan.budget_tags == ["0.5", "2", "4"]
     assert plan.scene_set_args("cbox") == ["--set", "film.width=8"]
     assert plan.pgi == ("echo",)
@@ -112,16 +112,37 @@ def _fake_pgi(tmp_path: Path) -> str:
 def test_plan_refuses_methods_it_cannot_run(tmp_path: Path, change: dict, expect: str) -> None:
     cfg = {**GOOD, "scenes_dir": str(_scenes(tmp_path)), "pgi": _fake_pgi(tmp_path), **change}
     with pytest.raises(PlanError, match=expect):
-        make_plan(cfg, tmp_path)
+        make_plan(cfg, tmp_path, check_scenes=False)
 
 
 def test_plan_accepts_a_baseline_among_its_methods(tmp_path: Path) -> None:
     cfg = {**GOOD, "scenes_dir": str(_scenes(tmp_path)), "pgi": _fake_pgi(tmp_path)}
     plan = make_plan(
-        {**cfg, "methods": "all", "exclude_methods": ["pt"], "baseline": "lt"}, tmp_path
+        {**cfg, "methods": "all", "exclude_methods": ["pt"], "baseline": "lt"},
+        tmp_path,
+        check_scenes=False,
     )
     assert plan.methods == ("lt", "mitsuba") and plan.baseline == "lt"
     # methods announced but not implemented may be excluded or configured ahead of time
     cfg.update(methods="all", exclude_methods=["pt", "bdpt"], method_args={"vrl": ["--x"]})
     cfg.update(baseline="lt")
-    assert make_plan(cfg, tmp_path).methods == ("lt", "mitsuba")
+    assert make_plan(cfg, tmp_path, check_scenes=False).methods == ("lt", "mitsuba")
+
+
+@pytest.mark.parametrize(
+    ("change", "expect"),
+    [
+        ({"set": ["film.widht=8"]}, r"scenes: 'cbox': .*film.widht: unknown key"),
+        (
+            {"scenes": ["cbox", {"name": "cbox-fog", "set": ["media.fog.sigma_t=-1"]}]},
+            r"scenes: 'cbox-fog': .*media.fog.sigma_t",
+        ),
+    ],
+)
+def test_plan_loads_each_scene_with_its_overrides(change: dict, expect: str) -> None:
+    """A misspelt or out-of-range override stops the plan before any job runs."""
+    cfg = {**GOOD, **change}
+    with pytest.raises(PlanError, match=expect):
+        make_plan(cfg, ROOT, check_methods=False)
+    good = {**GOOD, "scenes": ["cbox", "cbox-fog"], "set": ["film.width=8"]}
+    assert list(make_plan(good, ROOT, check_methods=False).scenes) == ["cbox", "cbox-fog"]

@@ -17,6 +17,8 @@ from typing import Any
 
 # The comment line with which `pgi methods` announces methods not implemented yet.
 from renderer.cli import PLANNED_PREFIX
+from renderer.errors import PgiError
+from renderer.scene import load_scene
 
 
 class PlanError(ValueError):
@@ -111,8 +113,25 @@ def available_methods(pgi: tuple[str, ...]) -> tuple[list[str], list[str]]:
     return ids, planned
 
 
-def make_plan(config: dict[str, Any], root: str | Path, check_methods: bool = True) -> Plan:
-    """Resolve a schema-validated config (defaults filled in) into a :class:`Plan`."""
+def check_scene(spec: SceneSpec) -> None:
+    """Load a scene with the study's overrides: a misspelt `set` key stops the plan, not the
+    first render (after the references may have run for minutes)."""
+    try:
+        load_scene(spec.path / "scene.yaml", spec.set)
+    except PgiError as e:
+        raise PlanError(f"scenes: '{spec.name}': {e}") from e
+
+
+def make_plan(
+    config: dict[str, Any],
+    root: str | Path,
+    check_methods: bool = True,
+    check_scenes: bool = True,
+) -> Plan:
+    """Resolve a schema-validated config (defaults filled in) into a :class:`Plan`.
+
+    ``check_methods`` asks `pgi methods` whether the methods exist; ``check_scenes`` loads
+    every scene with its overrides."""
     root = Path(root).resolve()
     pgi = resolve_pgi(str(config.get("pgi", "auto")))
     scenes_dir = root / config.get("scenes_dir", "scenes")
@@ -139,6 +158,8 @@ def make_plan(config: dict[str, Any], root: str | Path, check_methods: bool = Tr
             set=global_set + tuple(entry.get("set") or ()),
             reference_spp=int(entry.get("reference_spp", default_spp)),
         )
+        if check_scenes:
+            check_scene(scenes[name])
 
     wanted = config["methods"]
     exclude = set(config.get("exclude_methods") or ())
