@@ -131,7 +131,8 @@ def make_plan(
     """Resolve a schema-validated config (defaults filled in) into a :class:`Plan`.
 
     ``check_methods`` asks `pgi methods` whether the methods exist; ``check_scenes`` loads
-    every scene with its overrides."""
+    every scene with its overrides, when `pgi` is this package's own (``pgi: auto``): another
+    command may read scenes its own way."""
     root = Path(root).resolve()
     pgi = resolve_pgi(str(config.get("pgi", "auto")))
     scenes_dir = root / config.get("scenes_dir", "scenes")
@@ -158,7 +159,7 @@ def make_plan(
             set=global_set + tuple(entry.get("set") or ()),
             reference_spp=int(entry.get("reference_spp", default_spp)),
         )
-        if check_scenes:
+        if check_scenes and str(config.get("pgi", "auto")) == "auto":
             check_scene(scenes[name])
 
     wanted = config["methods"]
