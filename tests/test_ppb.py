@@ -220,3 +220,22 @@ def test_each_iteration_gathers_with_its_scheduled_beam_radius():
             )
             unshrunk.run_iteration(i)
             assert not np.allclose(own, unshrunk.image(), rtol=1e-3), i
+
+
+def test_beams_beyond_max_beams_are_dropped_and_counted(scene):
+    """`max_beams` bounds the BVH: the rest are dropped and counted (the image stays finite)."""
+    method = ProgressivePhotonBeams(
+        scene, seed=0, threads=1, params={"light_paths": 2048, "max_beams": 100}
+    )
+    method.run_iteration(0)
+    stats = method.stats()
+    assert stats["beams"] == 100 and stats["beams_truncated"] > 0
+    assert np.isfinite(method.image()).all()
+
+
+def test_light_path_records_beyond_max_records_stop_with_the_key_to_raise(scene):
+    method = ProgressivePhotonBeams(
+        scene, seed=0, threads=1, params={"light_paths": 2048, "max_records": 1000}
+    )
+    with pytest.raises(PgiError, match=r"bound of 1000 .*method\.max_records"):
+        method.run_iteration(0)

@@ -37,7 +37,7 @@ void LightPathTracer::check_capacity() const {
     if (max_records_ > 0 && records > max_records_)
         throw std::length_error("light paths: " + std::to_string(records) +
                                 " records exceed the configured bound of " + std::to_string(max_records_) +
-                                " (lower the photon count or raise the bound)");
+                                " (lower method.light_paths or raise method.max_records)");
 }
 
 size_t LightPathTracer::begin_iteration(int64_t iteration, const RayBuffers &out) {

@@ -39,6 +39,8 @@ from .params import MethodParams
 DEFAULT_LIGHT_PATHS = 1 << 13
 # Beams stored per iteration: a bound on memory (~100 bytes per beam with its pieces).
 DEFAULT_MAX_BEAMS = 1 << 22
+# Light-path records (vertices plus segments) per iteration, as pm's: beams come from them.
+DEFAULT_MAX_RECORDS = 1 << 23
 # Initial radius and the longest BVH piece of a beam, relative to the scene's radius.
 DEFAULT_RADIUS = 0.01
 DEFAULT_PIECE_LENGTH = 0.2
@@ -57,6 +59,7 @@ _PARAMS = {
     "radius",
     "alpha",
     "max_beams",
+    "max_records",
     "piece_length",
     "gather_bounces",
     "surface_radius",
@@ -78,6 +81,7 @@ class ProgressivePhotonBeams:
         radius = p.number("radius", DEFAULT_RADIUS, lo=0, lo_open=True)
         piece = p.number("piece_length", DEFAULT_PIECE_LENGTH, lo=0, lo_open=True)
         max_beams = p.integer("max_beams", DEFAULT_MAX_BEAMS, lo=1)
+        max_records = p.integer("max_records", DEFAULT_MAX_RECORDS, lo=1)
         gather_bounces = p.integer("gather_bounces", DEFAULT_GATHER_BOUNCES, lo=0)
         # 0: path-traced surfaces
         surface_radius = p.number("surface_radius", DEFAULT_SURFACE_RADIUS, lo=0)
@@ -92,7 +96,7 @@ class ProgressivePhotonBeams:
             seed=seed,
             threads=threads,
             paths=light_paths,
-            max_records=2 * max_beams,
+            max_records=max_records,
             vertices=surface_radius > 0,
         )
         self.kernel = _core.PhotonBeams(
