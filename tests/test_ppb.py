@@ -213,7 +213,7 @@ def test_each_iteration_gathers_with_its_scheduled_beam_radius():
         )
         fixed.run_iteration(i)
         assert np.allclose(own, fixed.image(), rtol=1e-9, atol=1e-12), i
-        assert ppb.stats()["radius"] == pytest.approx(fixed.stats()["radius"])
+        assert ppb.stats()["beam_radius_world"] == pytest.approx(fixed.stats()["beam_radius_world"])
         if i > 0:  # the control: the first radius kept (or ignored by the kernels) differs
             unshrunk = ProgressivePhotonBeams(
                 scene, seed=2, threads=2, params={**common, "radius": 0.05, "alpha": 1.0}
@@ -239,3 +239,60 @@ def test_light_path_records_beyond_max_records_stop_with_the_key_to_raise(scene)
     )
     with pytest.raises(PgiError, match=r"bound of 1000 .*method\.max_records"):
         method.run_iteration(0)
+
+
+def test_sidecar_radii_are_world_units_and_slopes_follow_the_kernels():
+    """The parameters are relative to the scene radius; the sidecar's radii are world units."""
+    scene = load_small("cbox-fog", 8, 8)
+    method = ProgressivePhotonBeams(
+        scene, seed=0, threads=1, params={"light_paths": 64, "radius": 0.05}
+    )
+    method.run_iteration(0)
+    s = method.stats()
+    size = method.native.core.scene_radius
+    assert s["beam_radius_world"] == pytest.approx(0.05 * size)
+    assert s["surface_radius_world"] == pytest.approx(0.02 * size)
+    # beams (d = 1, alpha 0.8): -0.8 / -0.4; surface photons (d = 2, alpha 2/3): -2/3 / -1/3
+    assert s["consistent"] is True
+    assert s["expected_mse_slope"] == pytest.approx(-2 / 3)
+    assert s["expected_mse_slope_at_edges"] == pytest.approx(-1 / 3)
+    traced = ProgressivePhotonBeams(
+        scene, seed=0, threads=1, params={"light_paths": 64, "surface_radius": 0, "alpha": 1}
+    ).stats()
+    assert traced["consistent"] is False and traced["expected_mse_slope"] == 0
+
+
+def test_each_iteration_gathers_with_its_scheduled_surface_radius():
+    """The default surface photons (d = 2): iteration i with surface_alpha < 1 equals iteration
+    i with a fixed surface radius of r_1 i^((alpha - 1) / 2); the unshrunk radius differs."""
+    scene = load_small("cbox-fog", 8, 8)
+    common = {"light_paths": 512, "radius": 0.02, "alpha": 1.0}
+    ppb = ProgressivePhotonBeams(
+        scene, seed=3, threads=2, params={**common, "surface_radius": 0.1, "surface_alpha": 0.5}
+    )
+    previous = np.zeros_like(ppb.image())
+    for i in range(3):
+        ppb.run_iteration(i)
+        total = ppb.image() * (i + 1)
+        own, previous = total - previous, total
+        radius = 0.1 * (i + 1) ** ((0.5 - 1) / 2)
+        fixed = ProgressivePhotonBeams(
+            scene,
+            seed=3,
+            threads=2,
+            params={**common, "surface_radius": radius, "surface_alpha": 1.0},
+        )
+        fixed.run_iteration(i)
+        assert np.allclose(own, fixed.image(), rtol=1e-9, atol=1e-12), i
+        assert ppb.stats()["surface_radius_world"] == pytest.approx(
+            fixed.stats()["surface_radius_world"]
+        )
+        if i > 0:
+            unshrunk = ProgressivePhotonBeams(
+                scene,
+                seed=3,
+                threads=2,
+                params={**common, "surface_radius": 0.1, "surface_alpha": 1.0},
+            )
+            unshrunk.run_iteration(i)
+            assert not np.allclose(own, unshrunk.image(), rtol=1e-3), i

@@ -42,3 +42,17 @@ def test_expected_mse_slope(dimension):
         slope = _core.radius_schedule_mse_slope(alpha, dimension)
         assert slope == pytest.approx(-min(alpha, 4 * (1 - alpha) / dimension))
         assert slope >= -best - 1e-12
+
+
+@pytest.mark.parametrize("dimension", [1, 2, 3])
+def test_expected_mse_slope_with_a_bias_of_order_r(dimension):
+    """At edges the bias is of order r: MSE ~ n^-min(alpha, 2 (1 - alpha) / d), best at
+    alpha = 2 / (d + 2), and never faster than with a bias of order r^2."""
+    best = 2 / (dimension + 2)
+    assert _core.radius_schedule_mse_slope(best, dimension, 1) == pytest.approx(-best)
+    for alpha in (0.2, 0.5, 0.8, 0.95):
+        slope = _core.radius_schedule_mse_slope(alpha, dimension, 1)
+        assert slope == pytest.approx(-min(alpha, 2 * (1 - alpha) / dimension))
+        assert slope >= _core.radius_schedule_mse_slope(alpha, dimension) - 1e-12
+    with pytest.raises(ValueError):
+        _core.radius_schedule_mse_slope(0.5, dimension, 3)

@@ -96,6 +96,22 @@ def test_radii_follow_the_schedule():
     assert s["surface_radius"] == pytest.approx(0.1 * 4 ** (-0.5 / 2))
     assert s["volume_radius"] == pytest.approx(0.2 * 4 ** (-0.5 / 2))
     assert s["consistent"] is True and s["expected_mse_slope"] == pytest.approx(-0.5)
+    assert s["expected_mse_slope_at_edges"] == pytest.approx(-0.5)  # -min(0.5, 2 x 0.5 / 2)
+
+
+def test_the_slower_kernel_sets_the_expected_slope():
+    """alpha 2/3 on surfaces (-2/3 where smooth, -1/3 at edges) and volume_alpha 0.9 in media
+    (-0.2 where smooth, -0.1 at edges): media converge slower and set both rates."""
+    s = StochasticProgressivePhotonMapping(
+        load_small("cbox", 8, 8), seed=0, threads=1, params={"photons": 64, "volume_alpha": 0.9}
+    ).stats()
+    assert s["expected_mse_slope"] == pytest.approx(-0.2)
+    assert s["expected_mse_slope_at_edges"] == pytest.approx(-0.1)
+    s = StochasticProgressivePhotonMapping(
+        load_small("cbox", 8, 8), seed=0, threads=1, params={"photons": 64}
+    ).stats()
+    assert s["expected_mse_slope"] == pytest.approx(-2 / 3)
+    assert s["expected_mse_slope_at_edges"] == pytest.approx(-1 / 3)
 
 
 def test_each_iteration_gathers_with_its_scheduled_radii():

@@ -51,8 +51,11 @@ void bind_pm(nb::module_ &m) {
               return to_numpy(std::move(r), {n});
           }, "initial"_a, "alpha"_a, "dimension"_a, "iterations"_a);
     m.def("radius_schedule_mse_slope",
-          [](double alpha, int dimension) { return RadiusSchedule(1.0, alpha, dimension).mse_slope(); },
-          "alpha"_a, "dimension"_a);
+          [](double alpha, int dimension, int bias_order) {
+              if (bias_order != 1 && bias_order != 2) throw std::invalid_argument("bias order must be 1 or 2");
+              return RadiusSchedule(1.0, alpha, dimension).mse_slope(bias_order);
+          },
+          "alpha"_a, "dimension"_a, "bias_order"_a = 2);
 
     nb::class_<PhotonGatherer>(m, "PhotonGatherer")
         .def(nb::init<std::shared_ptr<const Scene>, int, uint64_t, int, int>(), "scene"_a, "max_depth"_a, "seed"_a,

@@ -35,6 +35,7 @@ from ..scene.model import Scene
 from ..tracer import EmbreeTracer, RayBatch
 from .lightpath import LightPaths
 from .params import MethodParams
+from .schedules import expected_mse_slopes
 
 DEFAULT_LIGHT_PATHS = 1 << 13
 # Beams stored per iteration: a bound on memory (~100 bytes per beam with its pieces).
@@ -44,7 +45,8 @@ DEFAULT_MAX_RECORDS = 1 << 23
 # Initial radius and the longest BVH piece of a beam, relative to the scene's radius.
 DEFAULT_RADIUS = 0.01
 DEFAULT_PIECE_LENGTH = 0.2
-# alpha = 4 / (d + 4) with d = 1 minimises the asymptotic MSE (Knaus & Zwicker 2011).
+# alpha = 4 / (d + 4) with d = 1 minimises the asymptotic MSE where the radiance is smooth
+# (Knaus & Zwicker 2011; cpp/radius_schedule.h has the rate at edges).
 DEFAULT_ALPHA = 0.8
 # Surface photons (at the camera path's first diffuse surface): initial radius relative to
 # the scene radius (0: path-trace surfaces instead) and alpha = 4 / (d + 4) for d = 2.
@@ -117,6 +119,9 @@ class ProgressivePhotonBeams:
         self.shadows = RayBatch(self.kernel.capacity)
         self.spp_per_iteration = spp
         self.iterations = 0
+        self.alpha, self.surface_alpha = alpha, surface_alpha
+        # (alpha, dimension) of each blur: 1D beams; 2D surface photons unless path-traced
+        self.kernels = [(alpha, 1)] + ([(surface_alpha, 2)] if surface_radius > 0 else [])
 
     def run_iteration(self, iteration: int) -> None:
         # Passes 1-2: light paths, then their beams in a BVH with this iteration's radius.
@@ -135,8 +140,14 @@ class ProgressivePhotonBeams:
             "spp": int(self.kernel.samples_per_pixel),
             "spp_per_iteration": self.spp_per_iteration,
             "light_paths_per_iteration": self.light_paths.paths,
-            "radius": float(self.kernel.radius(max(self.iterations - 1, 0))),
-            "surface_radius": float(self.kernel.surface_radius(max(self.iterations - 1, 0))),
+            # the last iteration's radii in world units (the parameters are relative)
+            "beam_radius_world": float(self.kernel.radius(max(self.iterations - 1, 0))),
+            "surface_radius_world": float(self.kernel.surface_radius(max(self.iterations - 1, 0))),
+            "alpha": self.alpha,
+            "surface_alpha": self.surface_alpha,
+            # alpha = 1 keeps a radius fixed: the image converges to a blurred one
+            "consistent": all(a < 1 for a, _ in self.kernels),
+            **expected_mse_slopes(self.kernels),
             "beams": int(self.kernel.beams_stored),
             "surface_photons": int(self.kernel.photons_stored),
             "beams_truncated": int(self.kernel.beams_truncated),

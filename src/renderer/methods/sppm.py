@@ -18,6 +18,7 @@ from .. import _core
 from ..scene.model import Scene
 from .params import MethodParams
 from .pm import PhotonMapping
+from .schedules import expected_mse_slopes
 
 DEFAULT_ALPHA = 2.0 / 3.0
 # Blur dimensions of the two estimators (see the module docstring).
@@ -59,6 +60,8 @@ class StochasticProgressivePhotonMapping(PhotonMapping):
             initial_surface_radius=self.radius,
             initial_volume_radius=self.volume_radius,
             consistent=True,
-            expected_mse_slope=_core.radius_schedule_mse_slope(self.alpha, SURFACE_DIMENSION),
+            **expected_mse_slopes(
+                [(self.alpha, SURFACE_DIMENSION), (self.volume_alpha, VOLUME_DIMENSION)]
+            ),
         )
         return s
