@@ -37,3 +37,28 @@ def test_bad_method_parameter_is_a_clear_error(method, key, value, expected):
         get_method(method)(load_small("cbox", 4, 4), seed=0, threads=1, params={key: value})
     msg = str(info.value)
     assert msg.startswith(f"method {method}: {key} must be {expected}, got "), msg
+
+
+@pytest.mark.parametrize(
+    "method, params, message",
+    [
+        ("ppb", {"gather_bounces": 1}, "gather_bounces has no effect unless surface_radius=0"),
+        ("ppb", {"surface_radius": 0, "surface_alpha": 0.5}, "surface_alpha has no effect with"),
+        (
+            "pm",
+            {"radius": 0.1, "volume_radius": 0.1, "radius_scale": 0.02},
+            "radius_scale has no effect when radius and volume_radius are both given",
+        ),
+        ("sppm", {"radius": 0.1, "volume_radius": 0.1, "radius_scale": 0.02}, "radius_scale"),
+    ],
+)
+def test_a_parameter_without_effect_is_an_error(method, params, message):
+    with pytest.raises(PgiError, match=f"^method {method}: {message}"):
+        get_method(method)(load_small("cbox", 4, 4), seed=0, threads=1, params=params)
+
+
+def test_sppm_takes_both_radii_without_its_default_scale():
+    sppm = get_method("sppm")(
+        load_small("cbox", 4, 4), seed=0, threads=1, params={"radius": 0.1, "volume_radius": 0.2}
+    )
+    assert (sppm.radius, sppm.volume_radius) == (0.1, 0.2)

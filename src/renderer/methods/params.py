@@ -60,6 +60,11 @@ class MethodParams:
             self._fail(key, expected)
         return float(self.params[key])
 
+    def refuse_unused(self, key: str, used: bool, why: str) -> None:
+        """A parameter given where it has no effect is a mistake, not something to ignore."""
+        if key in self.params and not used:
+            raise PgiError(f"method {self.method}: {key} has no effect {why}")
+
     def spp_per_iteration(self, key: str, default: int, spp_budget: int | None) -> int:
         """Samples per pixel of one iteration; with an spp budget it must divide it, so that
         the run stops exactly at the budget."""

@@ -56,6 +56,8 @@ class PhotonMapping:
         size = self.native.core.scene_radius
         self.radius = p.number("radius", scale * size, lo=0, lo_open=True)
         self.volume_radius = p.number("volume_radius", scale * size, lo=0, lo_open=True)
+        both = "radius" in params and "volume_radius" in params
+        p.refuse_unused("radius_scale", not both, "when radius and volume_radius are both given")
         self.light_paths = LightPaths(
             self.native,
             self.tracer,

@@ -88,6 +88,8 @@ class ProgressivePhotonBeams:
         # 0: path-traced surfaces
         surface_radius = p.number("surface_radius", DEFAULT_SURFACE_RADIUS, lo=0)
         surface_alpha = p.number("surface_alpha", DEFAULT_SURFACE_ALPHA, lo=0, hi=1, lo_open=True)
+        p.refuse_unused("gather_bounces", surface_radius == 0, "unless surface_radius=0")
+        p.refuse_unused("surface_alpha", surface_radius > 0, "with surface_radius=0")
         self.native = build_native_scene(scene)
         self.tracer = EmbreeTracer(self.native.triangles, threads)
         size = self.native.core.scene_radius

@@ -40,7 +40,8 @@ class StochasticProgressivePhotonMapping(PhotonMapping):
         alpha = p.number("alpha", DEFAULT_ALPHA, lo=0, hi=1, lo_open=True, hi_open=True)
         volume_alpha = p.number("volume_alpha", alpha, lo=0, hi=1, lo_open=True, hi_open=True)
         params = {k: v for k, v in params.items() if k not in ("alpha", "volume_alpha")}
-        params.setdefault("radius_scale", DEFAULT_INITIAL_RADIUS_SCALE)
+        if "radius" not in params or "volume_radius" not in params:
+            params.setdefault("radius_scale", DEFAULT_INITIAL_RADIUS_SCALE)
         super().__init__(scene, seed=seed, threads=threads, params=params, spp_budget=spp_budget)
         self.alpha, self.volume_alpha = alpha, volume_alpha
 
