@@ -53,8 +53,8 @@ def test_identical_images_zero_error() -> None:
 
 def test_ssim_constant_images_closed_form() -> None:
     # constant images a, b (in display space): SSIM = (2ab + C1) / (a^2 + b^2 + C1), C1 = 0.01^2
-    r = const(9, 9, 0.2)
-    x = const(9, 9, 0.05)
+    r = const(16, 16, 0.2)
+    x = const(16, 16, 0.05)
     a = float(m.tonemap_srgb(np.array(0.05)))
     b = float(m.tonemap_srgb(np.array(0.2)))
     c1 = 0.01**2
@@ -134,9 +134,30 @@ def test_nonfinite_raises(bad: float) -> None:
 
 
 def test_tiny_image_ssim_nan_but_others_fine() -> None:
-    got = m.compare_images(const(2, 2, 1.0), const(2, 2, 2.0))
+    got = m.compare_images(const(10, 10, 1.0), const(10, 10, 2.0))  # below the 11x11 window
     assert math.isnan(got["one_minus_ssim"])
     assert got["mse"] == pytest.approx(1.0)
+
+
+def test_ssim_is_wang_et_al() -> None:
+    """Gaussian window (sigma 1.5) and population covariances, checked against a direct
+    evaluation of Wang et al.'s formula at the centre pixel of a 11x11 image pair."""
+    rng = np.random.default_rng(3)
+    a, b = rng.uniform(0.2, 0.8, (2, 11, 11))
+    g = np.exp(-0.5 * ((np.arange(11) - 5) / 1.5) ** 2)
+    w = np.outer(g, g) / np.outer(g, g).sum()
+    mu_a, mu_b = (w * a).sum(), (w * b).sum()
+    var_a, var_b = (w * (a - mu_a) ** 2).sum(), (w * (b - mu_b) ** 2).sum()
+    cov = (w * (a - mu_a) * (b - mu_b)).sum()
+    c1, c2 = 0.01**2, 0.03**2
+    expected = ((2 * mu_a * mu_b + c1) * (2 * cov + c2)) / (
+        (mu_a**2 + mu_b**2 + c1) * (var_a + var_b + c2)
+    )
+    # On an 11x11 image only the centre pixel has a full window (scikit-image crops the rest).
+    lin = lambda v: np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4)  # noqa: E731
+    x = np.repeat(lin(a)[:, :, None], 3, axis=2)
+    r = np.repeat(lin(b)[:, :, None], 3, axis=2)
+    assert 1 - m.compare_images(x, r)["one_minus_ssim"] == pytest.approx(expected, rel=1e-6)
 
 
 def test_maps() -> None:

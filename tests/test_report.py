@@ -44,6 +44,23 @@ def test_fit_slope_above_floor_removes_the_reference_error() -> None:
     assert math.isnan(fit_slope_above_floor(t, measured, 1.0).slope)  # nothing above 2x
 
 
+def test_fit_slope_above_floor_needs_three_budgets_spanning_four_times() -> None:
+    """What the points above the floor must show before their slope is reported: two seeds at
+    the first budget (a "slope" of seed noise), or budgets 1 and 2 only, are not enough."""
+    floor = 0.05
+    two_seeds_one_budget = fit_slope_above_floor([1.02, 1.11], [0.4, 0.3], floor)
+    assert math.isnan(two_seeds_one_budget.slope) and two_seeds_one_budget.n == 2
+    t = np.array([1.0, 1.1, 2.0, 2.2, 4.0, 4.4])
+    budgets = np.array([1, 1, 2, 2, 4, 4])
+    measured = 0.4 / t + floor
+    f = fit_slope_above_floor(t, measured, floor, budgets=budgets)
+    assert f.slope == pytest.approx(-1.0) and f.n == 6
+    assert math.isnan(fit_slope_above_floor(t[:4], measured[:4], floor, budgets=budgets[:4]).slope)
+    # three budgets, but spanning less than 4x
+    close = fit_slope_above_floor([1.0, 1.5, 2.0], [0.45, 0.32, 0.25], floor)
+    assert math.isnan(close.slope) and close.n == 3
+
+
 def test_time_to_error() -> None:
     t = [1.0, 2.0, 4.0]
     e = [1.0, 0.5, 0.25]
@@ -277,3 +294,34 @@ def test_browser_check_catches_errors(tmp_path: Path) -> None:
     assert any("boom" in e for e in r.errors)
     assert any("undefinedFunction" in e for e in r.errors)
     assert "missing" in r.broken_images
+
+
+def test_methods_within_two_standard_errors_of_the_best_are_tied() -> None:
+    """pt 1.00 and mitsuba 1.05 (std 0.1 over 2 seeds: the difference's standard error is 0.1)
+    tie; lt at 1.5 does not; with one seed no spread is known and nothing ties."""
+    rows = [
+        ("pt", 1.00, 0.1, 2),
+        ("mitsuba", 1.05, 0.1, 2),
+        ("lt", 1.50, 0.1, 2),
+        ("pm", 1.01, np.nan, 1),
+    ]
+    summary = pd.DataFrame(
+        [
+            {
+                "scene": "s",
+                "budget": 1.0,
+                "method": m,
+                "relmse_mean": mean,
+                "relmse_std": std,
+                "n_seeds": n,
+                "render_seconds_mean": 1.0,
+                "ref_ok": True,
+            }
+            for m, mean, std, n in rows
+        ]
+    )
+    best = T.best_methods(summary, "relmse")
+    assert best.method.tolist() == ["pt"] and best.tied_with.tolist() == ["mitsuba"]
+    marked = {r["method"] for r in T.overview_cells(summary, "relmse") if r["cells"][1.0]["best"]}
+    assert marked == {"pt", "mitsuba"}
+    assert not T.tied(1.0, 0.1, 2, 1.5, 0.1, 2) and T.tied(1.0, 0.1, 2, 1.19, 0.1, 2)

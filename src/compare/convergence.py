@@ -47,19 +47,36 @@ def fit_slope(times: Sequence[float], errors: Sequence[float]) -> SlopeFit:
 # Points whose error is within this factor of the floor are dropped from the excess fit: their
 # excess is mostly the noise of the floor's own estimate.
 FLOOR_MARGIN = 2.0
+# The excess fit needs points at three budgets or more, spanning at least this factor in
+# time: the points left may otherwise all come from one budget (two seeds at 1 s give a
+# "slope" of pure seed noise).
+MIN_FIT_POINTS = 3
+MIN_FIT_SPAN = 4.0
 
 
 def fit_slope_above_floor(
-    times: Sequence[float], errors: Sequence[float], floor: float, margin: float = FLOOR_MARGIN
+    times: Sequence[float],
+    errors: Sequence[float],
+    floor: float,
+    margin: float = FLOOR_MARGIN,
+    budgets: Sequence[float] | None = None,
 ) -> SlopeFit:
     """Slope of (error - floor) vs time, ``floor`` being an additive error that does not fall
     with render time (the reference's own error). Uses the points with error >= margin x floor;
-    NaN (with n = points used) when fewer than two remain or the floor is unknown."""
+    NaN (with n = points kept) when the floor is unknown or the points kept come from fewer
+    than MIN_FIT_POINTS budgets or span less than MIN_FIT_SPAN in time. ``budgets`` (one per
+    point; default: the times) tells points of one budget apart."""
     e = np.asarray(errors, dtype=np.float64)
     t = np.asarray(times, dtype=np.float64)
+    b = t if budgets is None else np.asarray(budgets, dtype=np.float64)
     if not (math.isfinite(floor) and floor >= 0):
         return SlopeFit(math.nan, math.nan, math.nan, 0)
-    keep = e >= margin * floor
+    keep = (e >= margin * floor) & (t > 0) & np.isfinite(e)
+    kept = t[keep]
+    if np.unique(b[keep]).size < MIN_FIT_POINTS or kept.max(initial=0) < MIN_FIT_SPAN * kept.min(
+        initial=math.inf
+    ):
+        return SlopeFit(math.nan, math.nan, math.nan, int(keep.sum()))
     return fit_slope(t[keep], e[keep] - floor)
 
 

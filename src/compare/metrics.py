@@ -15,9 +15,11 @@ as grey). Values are accumulated in float64. Definitions (N = H*W*3 values,
 - ``mape``           mean(|x - r| / (|r| + eps))
 - ``smape``          mean(|x - r| / (|x| + |r| + eps)), in [0, 1)
 - ``flip``           mean HDR-FLIP (NVIDIA ``flip-evaluator``), in [0, 1]
-- ``one_minus_ssim`` 1 - SSIM (scikit-image, mean over channels) on the images
-                     tonemapped to display sRGB: clip(x, 0, 1) then the sRGB
-                     transfer curve, data range 1.
+- ``one_minus_ssim`` 1 - SSIM as Wang et al. 2004 define it (Gaussian window of
+                     sigma 1.5, 11x11; population covariances; scikit-image, mean
+                     over channels) on the images tonemapped to display sRGB:
+                     clip(x, 0, 1) then the sRGB transfer curve, data range 1.
+                     NaN for images smaller than the window.
 
 Inputs are validated before anything reaches ``flip-evaluator``, which calls
 ``sys.exit`` on bad input: shapes must match, values must be finite. Negative
@@ -131,16 +133,25 @@ def tonemap_srgb(img: np.ndarray, exposure: float = 0.0) -> np.ndarray:
     return np.where(a <= 0.0031308, 12.92 * a, 1.055 * np.power(a, 1.0 / 2.4) - 0.055)
 
 
+# Wang et al. 2004: a Gaussian window of sigma 1.5, which scikit-image truncates at 3.5 sigma.
+SSIM_SIGMA = 1.5
+SSIM_WINDOW = 2 * int(3.5 * SSIM_SIGMA + 0.5) + 1
+
+
 def _ssim(x: np.ndarray, r: np.ndarray) -> float:
     from skimage.metrics import structural_similarity
 
-    side = min(x.shape[0], x.shape[1])
-    win = min(7, side if side % 2 == 1 else side - 1)
-    if win < 3:
-        return math.nan  # SSIM is undefined on images smaller than 3x3
+    if min(x.shape[0], x.shape[1]) < SSIM_WINDOW:
+        return math.nan  # the standard window does not fit
     return float(
         structural_similarity(
-            tonemap_srgb(x), tonemap_srgb(r), win_size=win, channel_axis=2, data_range=1.0
+            tonemap_srgb(x),
+            tonemap_srgb(r),
+            gaussian_weights=True,
+            sigma=SSIM_SIGMA,
+            use_sample_covariance=False,
+            channel_axis=2,
+            data_range=1.0,
         )
     )
 

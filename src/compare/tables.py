@@ -103,13 +103,46 @@ def overshoot(render_seconds: float, budget: float) -> bool:
     return bool(render_seconds > OVERSHOOT * budget)
 
 
+# Two cells whose means differ by less than this many standard errors of the difference
+# (seed-to-seed spread / sqrt(seeds), both cells' combined) are a tie: seeds cannot tell them
+# apart.
+TIE_STANDARD_ERRORS = 2.0
+
+
+def tied(a_mean: float, a_std: float, a_n: int, b_mean: float, b_std: float, b_n: int) -> bool:
+    """Whether two cells' means lie within TIE_STANDARD_ERRORS of each other (never with
+    fewer than two seeds on either side: no spread is known then)."""
+    if min(a_n, b_n) < 2 or not (math.isfinite(a_std) and math.isfinite(b_std)):
+        return False
+    return abs(a_mean - b_mean) < TIE_STANDARD_ERRORS * math.hypot(
+        a_std / math.sqrt(a_n), b_std / math.sqrt(b_n)
+    )
+
+
 def best_methods(summary: pd.DataFrame, metric: str) -> pd.DataFrame:
-    """The method with the lowest mean ``metric`` per scene and budget."""
-    col = f"{metric}_mean"
+    """The method with the lowest mean ``metric`` per scene and budget, and in ``tied_with``
+    the other methods (comma-separated) that seeds cannot tell from it."""
+    col, std = f"{metric}_mean", f"{metric}_std"
     valid = summary.dropna(subset=[col])
     idx = valid.groupby(["scene", "budget"])[col].idxmin()
     cols = ["scene", "budget", "method", col, "render_seconds_mean"]
-    return valid.loc[idx, [c for c in cols if c in valid]].reset_index(drop=True)
+    best = valid.loc[idx, [c for c in cols if c in valid]].reset_index(drop=True)
+    ties = []
+    for i in idx:
+        b = valid.loc[i]
+        rivals = valid[
+            (valid.scene == b.scene) & (valid.budget == b.budget) & (valid.method != b.method)
+        ]
+        ties.append(
+            ",".join(
+                str(r["method"])
+                for _, r in rivals.iterrows()
+                if std in valid
+                and tied(b[col], b[std], b["n_seeds"], r[col], r[std], r["n_seeds"])
+            )
+        )
+    best["tied_with"] = ties
+    return best
 
 
 def convergence_table(runs: pd.DataFrame, metrics: Sequence[str] = METRICS) -> pd.DataFrame:
@@ -122,7 +155,12 @@ def convergence_table(runs: pd.DataFrame, metrics: Sequence[str] = METRICS) -> p
             f = fit_slope(t.to_numpy(), d[m].to_numpy())
             floor = REFERENCE_ERROR.get(m)
             g = (
-                fit_slope_above_floor(t.to_numpy(), d[m].to_numpy(), float(d[floor].median()))
+                fit_slope_above_floor(
+                    t.to_numpy(),
+                    d[m].to_numpy(),
+                    float(d[floor].median()),
+                    budgets=d["budget"].to_numpy(),
+                )
                 if floor in d
                 else None
             )
@@ -237,6 +275,9 @@ def overview_cells(summary: pd.DataFrame, metric: str) -> list[dict]:
     """One dict per scene x method: cells per budget with text, best and flag marks."""
     best = best_methods(summary, metric)
     best_set = {(r.scene, r.budget, r.method) for r in best.itertuples()}
+    best_set |= {
+        (r.scene, r.budget, m) for r in best.itertuples() for m in r.tied_with.split(",") if m
+    }
     out = []
     for (scene, method), d in summary.groupby(["scene", "method"], sort=True):
         cells = {}
@@ -266,7 +307,8 @@ def overview_markdown(summary: pd.DataFrame, metric: str) -> str:
     head = ["scene", "method", *[budget_label(b) for b in budgets]]
     lines = [
         f"{METRIC_LABELS.get(metric, metric)}, mean ± std over seeds; **bold** = best per "
-        "scene and budget; ⚠ = reference error not well below this error; (at … s) = the "
+        f"scene and budget, and any method within {TIE_STANDARD_ERRORS:g} standard errors of "
+        "it (a tie); ⚠ = reference error not well below this error; (at … s) = the "
         f"snapshot came more than {OVERSHOOT:g}x after its budget, at that mean render time",
         "",
         "| " + " | ".join(head) + " |",

@@ -88,7 +88,9 @@ def _slopes_note() -> str:
 def _legend(metric: str, factor: float) -> str:
     return (
         f'<p class="note">{e(_metric_label(metric))}, mean ± standard deviation over seeds. '
-        "<b>Bold green</b>: lowest mean error for that scene and budget. "
+        "<b>Bold green</b>: lowest mean error for that scene and budget, and any method "
+        f"within {T.TIE_STANDARD_ERRORS:g} standard errors of it (seeds cannot tell them "
+        "apart: a tie). "
         f'<span class="flag">⚠</span>: for at least one seed, the reference\'s own relMSE is '
         f"not {factor:g}x below that run's relMSE, so the reference may limit what the cell "
         "can show. "
@@ -132,6 +134,8 @@ def _about_scene(
             seconds = float(cell.render_seconds_mean.iloc[0]) if not cell.empty else 0.0
             if T.overshoot(seconds, last.budget):
                 verdict += "; not equal time:" + T.late_mark(seconds, last.budget)
+            if last.tied_with:
+                verdict += f"; tied with {e(last.tied_with.replace(',', ', '))}"
             parts.append(f" <b>Won</b> at {e(T.budget_label(last.budget))}: {e(won)} ({verdict}).")
         parts.append("</p>")
     return "".join(parts)
@@ -375,7 +379,9 @@ def build_index(spec: dict[str, Any]) -> None:
             seconds = float(r.render_seconds_mean.iloc[0])
             if T.overshoot(seconds, b):
                 flag += T.late_mark(seconds, b)
-            win.append(f"<td>{e(m)} ({T.fmt(r.iloc[0, 3])}){flag}</td>")
+            ties = str(r.tied_with.iloc[0])
+            tie = f' <span class="note">tied with {e(ties.replace(",", ", "))}</span>' if ties else ""
+            win.append(f"<td>{e(m)} ({T.fmt(r.iloc[0, 3])}){tie}{flag}</td>")
         win.append("</tr>")
     win.append("</tbody></table>")
     body.append("".join(win))
