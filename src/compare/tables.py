@@ -137,8 +137,7 @@ def best_methods(summary: pd.DataFrame, metric: str) -> pd.DataFrame:
             ",".join(
                 str(r["method"])
                 for _, r in rivals.iterrows()
-                if std in valid
-                and tied(b[col], b[std], b["n_seeds"], r[col], r[std], r["n_seeds"])
+                if std in valid and tied(b[col], b[std], b["n_seeds"], r[col], r[std], r["n_seeds"])
             )
         )
     best["tied_with"] = ties

@@ -81,7 +81,8 @@ def _slopes_note() -> str:
         '<p class="note">A noisy reference adds its own error to every measurement, which '
         'flattens the curves of methods that get close to it. "Reference error removed": the '
         "fit of (error − reference error) over the runs with at least twice the reference "
-        "error; blank where fewer than two such runs exist.</p>"
+        "error; blank unless those runs come from three budgets or more spanning at least 4x "
+        "in time. The plots' legends give the slopes as measured.</p>"
     )
 
 
@@ -379,8 +380,8 @@ def build_index(spec: dict[str, Any]) -> None:
             seconds = float(r.render_seconds_mean.iloc[0])
             if T.overshoot(seconds, b):
                 flag += T.late_mark(seconds, b)
-            ties = str(r.tied_with.iloc[0])
-            tie = f' <span class="note">tied with {e(ties.replace(",", ", "))}</span>' if ties else ""
+            ties = str(r.tied_with.iloc[0]).replace(",", ", ")
+            tie = f' <span class="note">tied with {e(ties)}</span>' if ties else ""
             win.append(f"<td>{e(m)} ({T.fmt(r.iloc[0, 3])}){tie}{flag}</td>")
         win.append("</tr>")
     win.append("</tbody></table>")
