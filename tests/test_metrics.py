@@ -18,8 +18,8 @@ def const(h: int, w: int, v: float | tuple[float, float, float]) -> np.ndarray:
 
 def test_constant_offset_values() -> None:
     # r = 1, x = 1.5 everywhere: d = 0.5
-    r = const(8, 8, 1.0)
-    x = const(8, 8, 1.5)
+    r = const(16, 16, 1.0)
+    x = const(16, 16, 1.5)
     got = m.compare_images(x, r)
     assert got["mse"] == pytest.approx(0.25)
     assert got["rmse"] == pytest.approx(0.5)
