@@ -162,7 +162,7 @@ def test_bad_scene_gives_one_line_error_and_no_output(tmp_path, kind):
         (["compare", "a.png", "b.exr"], "expected a linear .exr image"),
         (
             ["render", "cbox", "--method", "pt", "--spp", "1", "-o", "x.exr"]
-            + ["--set", "shapes[7].transform=[{scale: 1.0e-9}]"],
+            + ["--set", "shapes[7].transform=[{scale: 1.0e-9}, {translate: [0, 1000, 0]}]"],
             "every triangle of this emitter is degenerate",
         ),
         (

@@ -324,6 +324,15 @@ def test_include(tmp_path):
         load_scene(path)
 
 
+def test_an_empty_section_adds_nothing_and_removes_nothing(tmp_path):
+    base = yaml.safe_load(yaml.safe_dump(BASE))
+    del base["name"], base["description"]
+    write(tmp_path, base, "common.yaml")
+    path = write(tmp_path, "include: common.yaml\nmaterials:\nmedia:\nshapes:\nlights:\n")
+    scene = load_scene(path)
+    assert set(scene.materials) == {"white"} and [s.name for s in scene.shapes] == ["floor", "lamp"]
+
+
 def test_rectangle_and_cube_normals():
     v, f = primitives.rectangle()
     n = primitives.face_normals(v, f)
@@ -380,6 +389,24 @@ def test_values_beyond_float32_and_size_limits_are_errors(tmp_path):
     expect_error(path, "film.width", "<= 16384", ["film.width=100000"])
     d = np.full((2, 2, 2), 1e39)  # finite in float64, inf in float32
     expect_error(grid_scene(tmp_path, d), "media.smoke.density", "float32 range")
+    path = write(tmp_path, BASE, "plain.yaml")  # grid_scene rewrote scene.yaml
+    expect_error(path, "camera.origin[2]", "<= 1e\\+15", ["camera.origin=[0, 0, 1.0e+39]"])
+    fog = "media.fog={type: homogeneous, sigma_t: 1.0e+20, albedo: 0.5, scale: 1.0e+20}"
+    expect_error(path, "media.fog", "sigma_t x scale is 1e\\+40, above 1e\\+30", [fog])
+    grid = grid_scene(tmp_path, np.full((2, 2, 2), 1e20), sigma_t=1e20)
+    expect_error(grid, "media.smoke", "the densest voxel is 1e\\+40")
+    far = grid_scene(tmp_path, np.ones((2, 2, 2)), transform=[{"translate": [1e15, 0, 0]}])
+    expect_error(far, "media.smoke.transform", "grid's box beyond")
+
+
+def test_a_rotated_grid_is_refused_on_load(tmp_path):
+    """Mitsuba supports only axis-aligned grids: `pgi validate` says so, not the reference."""
+    turn = [{"rotate": {"axis": [0, 0, 1], "angle": 30}}]
+    expect_error(grid_scene(tmp_path, np.ones((2, 2, 2)), transform=turn), "media.smoke.transform",
+                 "rotates the grid")  # fmt: skip
+    quarter = [{"rotate": {"axis": [0, 0, 1], "angle": 90}}]  # axes swapped: still a rotation
+    expect_error(grid_scene(tmp_path, np.ones((2, 2, 2)), transform=quarter),
+                 "media.smoke.transform", "rotates")  # fmt: skip
 
 
 def test_exponents_without_a_dot_are_numbers(tmp_path):

@@ -231,6 +231,36 @@ def test_degenerate_triangles_are_dropped_and_harmless():
     np.testing.assert_array_equal(a.image(), b.image())
 
 
+def test_both_renderers_get_the_same_triangles():
+    """Degenerate triangles are dropped for Mitsuba too; a small triangle near the origin of a
+    very large scene is not degenerate (its own coordinates set the bound, not the scene's size:
+    float32 resolves it there) and both renderers keep it."""
+    from renderer.scene.mitsuba_export import load_mitsuba_scene
+
+    scene = load_small("fog-step", 8, 8)
+    v = np.array([[0.1, 0.2, 0.3], [0.5, 0.2, 0.3], [0.3, 0.2, 0.3], [0.2, 0.4, 0.1]])
+    junk = Shape("junk", v, np.array([[0, 1, 2], [0, 0, 3]], np.int32), material="white")
+    s = 1e6  # a floor 2e6 wide
+    floor = Shape(
+        "floor",
+        np.array([[-s, -1, -s], [s, -1, -s], [s, -1, s], [-s, -1, s]]),
+        np.array([[0, 1, 2], [0, 2, 3]], np.int32),
+        material="white",
+    )
+    tiny = Shape(
+        "tiny",
+        np.array([[0, 0, 0.5], [0.02, 0, 0.5], [0, 0.02, 0.5]]),
+        np.array([[0, 1, 2]], np.int32),
+        material="white",
+    )
+    bad = dataclasses.replace(scene, shapes=[*scene.shapes, junk, floor, tiny])
+    native = build_native_scene(bad)
+    assert native.dropped_triangles == 2
+    ours_count = len(native.triangles)
+    theirs = sum(shape.face_count() for shape in load_mitsuba_scene(bad).shapes())
+    assert theirs == ours_count == sum(len(sh.faces) for sh in bad.shapes) - 2
+
+
 # --------------------------------------------------------------------------- energy
 
 

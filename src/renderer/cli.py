@@ -174,10 +174,12 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
     overrides, _ = _split_sets(args.set, "validate")
     scene = load_scene(args.scene, overrides)
-    build_native_scene(scene)  # what only the renderer's core checks (e.g. degenerate emitters)
-    triangles = sum(len(s.faces) for s in scene.shapes)
+    native = build_native_scene(scene)  # what only the core checks (e.g. a too-fine march)
+    triangles = f"{len(native.triangles)} triangles"
+    if native.dropped_triangles:
+        triangles += f" ({native.dropped_triangles} degenerate ones dropped)"
     print(
-        f"{scene.path}: ok ({len(scene.shapes)} shapes, {triangles} triangles, "
+        f"{scene.path}: ok ({len(scene.shapes)} shapes, {triangles}, "
         f"{len(scene.media)} media, {scene.film.width}x{scene.film.height})"
     )
     return 0

@@ -10,6 +10,7 @@ import numpy as np
 from . import _core
 from .errors import PgiError
 from .scene.model import Camera, DirectionalLight, Film, Medium, PointLight, Scene, SpotLight
+from .scene.triangles import kept_faces
 
 _MATERIAL_TYPES = {"diffuse": 0, "mirror": 1, "dielectric": 2, "null": 3}
 _PHASE_TYPES = {"isotropic": 0, "hg": 1, "rayleigh": 2, "tabulated": 3}
@@ -18,9 +19,6 @@ _ESTIMATORS = {"delta": 0, "ratio": 1, "residual": 2, "raymarch": 3}
 # enough that the DDA does not dominate. (bench/bench_media.py sweeps it: the
 # tighter the majorants, the closer delta tracking gets to ratio tracking.)
 MAJORANT_CELL = 4
-# Triangles with less area than this fraction of the scene's squared size are
-# dropped: they have no normal, and no light can hit them.
-_DEGENERATE_AREA = 1e-14
 # Ray-marching steps shorter than this fraction of a voxel refine nothing and cost hours.
 _MIN_MARCH_STEP = 1e-3
 
@@ -134,11 +132,7 @@ def build_native_scene(scene: Scene, majorant_cell: int = MAJORANT_CELL) -> Nati
         owner.append(np.full(n, index, np.int32))
     triangles = np.concatenate(tris).astype(np.float64)
     owner = np.concatenate(owner)
-    area = 0.5 * np.linalg.norm(
-        np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0]), axis=1
-    )
-    extent = float(np.ptp(triangles.reshape(-1, 3), axis=0).max())
-    keep = area > _DEGENERATE_AREA * max(extent, 1e-300) ** 2
+    keep = np.concatenate(kept_faces(scene))  # Mitsuba drops the same ones
     triangles = np.ascontiguousarray(triangles[keep])
     owner = owner[keep]
     mats, inside, outside, transition = (
@@ -147,14 +141,8 @@ def build_native_scene(scene: Scene, majorant_cell: int = MAJORANT_CELL) -> Nati
 
     emitter = np.full(len(triangles), -1, np.int32)
     for index, shape in enumerate(scene.shapes):
-        if shape.emission is not None:
+        if shape.emission is not None:  # kept_faces refused emitters with no triangle left
             members = np.flatnonzero(owner == index).astype(np.int32)
-            if len(members) == 0:
-                raise PgiError(
-                    f"{scene.path}: shapes[{index}] ({shape.name}): every triangle of this "
-                    f"emitter is degenerate (area below {_DEGENERATE_AREA:g} of the scene's "
-                    "squared size): it would emit nothing"
-                )
             emitter[members] = core.add_area_light(tuple(map(float, shape.emission)), members)
     core.set_triangles(triangles, mats, emitter, inside, outside, transition)
 

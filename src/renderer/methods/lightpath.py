@@ -11,9 +11,10 @@ from __future__ import annotations
 import numpy as np
 
 from .. import _core
-from ..engine import _DEGENERATE_AREA, NativeScene
+from ..engine import NativeScene
 from ..errors import PgiError
 from ..scene.model import PointLight, Scene, SpotLight
+from ..scene.triangles import kept_faces
 from ..tracer import EmbreeTracer, RayBatch
 
 # Probe directions per emitter: the medium is the majority answer.
@@ -76,10 +77,7 @@ def locate_media(
 
 def _kept(scene: Scene) -> np.ndarray:
     """The triangles build_native_scene keeps (it drops degenerate ones), in shape order."""
-    tri = np.concatenate([s.vertices[s.faces] for s in scene.shapes]).astype(np.float64)
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    extent = float(np.ptp(tri.reshape(-1, 3), axis=0).max())
-    return area > _DEGENERATE_AREA * max(extent, 1e-300) ** 2
+    return np.concatenate(kept_faces(scene))
 
 
 def _per_triangle(scene: Scene, values: list) -> np.ndarray:

@@ -44,6 +44,7 @@ SCENE_FILE = "scene.yaml"
 # Bounds that keep every value representable in the float32 of Embree and of the images.
 MAX_LIGHT = 1e30  # emitted radiance, intensity, irradiance
 MAX_COORDINATE = 1e15  # |vertex coordinate| (float32 spacing there is ~1e8: far beyond any scene)
+MAX_EXTINCTION = 1e30  # sigma_t x scale (x the densest voxel): Mitsuba multiplies in float32
 MAX_FILM_SIDE = 16384
 REPO_ROOT = Path(__file__).resolve().parents[3]  # src/renderer/scene/loader.py -> repo
 
@@ -204,6 +205,10 @@ def _merge_includes(main: Path, doc: dict, origins: _Origins) -> dict:
                 )
             if key in ("shapes", "lights") and not isinstance(value, list | None):
                 raise PgiError(f"{file}: {key}: expected a list, got {_describe(value)}")
+            if value is None and key in ("materials", "media"):  # empty: adds nothing
+                value = {}
+            if value is None and key in ("shapes", "lights"):
+                value = []
             target = merged.get(key)
             if (
                 key in ("materials", "media")
@@ -360,9 +365,11 @@ class _Validator:
         return list(v)
 
     def vec3(self, v: Any, path: KeyPath, nonzero: bool = False) -> np.ndarray:
+        """Three numbers, each within +-MAX_COORDINATE (positions, directions, scales)."""
         if not isinstance(v, list) or len(v) != 3:
             self.fail(path, f"expected a list of 3 numbers [x, y, z], got {_describe(v)}")
-        a = np.array([self.number(x, path + (i,)) for i, x in enumerate(v)])
+        bound = MAX_COORDINATE
+        a = np.array([self.number(x, path + (i,), -bound, bound) for i, x in enumerate(v)])
         if nonzero and not np.any(a):
             self.fail(path, "expected a non-zero vector")
         return a
@@ -645,14 +652,32 @@ def _medium(val: _Validator, name: str, d: Any) -> Medium:
     albedo = val.rgb(d["albedo"], p + ("albedo",), hi=1)
     scale = val.number(d.get("scale", 1.0), p + ("scale",), lo=0)
     phase = _phase(val, d["phase"], p + ("phase",)) if "phase" in d else Phase()
+
+    def check_extinction(peak: float, what: str) -> None:
+        if max(sigma_t) * scale * peak > MAX_EXTINCTION:
+            val.fail(p, f"{what} is {max(sigma_t) * scale * peak:g}, above {MAX_EXTINCTION:g}")
+
     if kind == "homogeneous":
+        check_extinction(1.0, "sigma_t x scale")
         return Medium(name, kind, sigma_t, albedo, scale, phase)
     density, placement, source = _load_density(val, d["density"], p + ("density",))
+    check_extinction(float(density.max(initial=0.0)), "sigma_t x scale x the densest voxel")
     to_world = val.transform(d.get("transform", []), p + ("transform",))
     if placement is not None:  # an OpenVDB file places its grid; the transform moves it on
         to_world = to_world @ placement
-    if abs(np.linalg.det(to_world[:3, :3])) < 1e-12:
+    linear = to_world[:3, :3]
+    if abs(np.linalg.det(linear)) < 1e-12:
         val.fail(p + ("transform",), "is singular: the grid's box would have no volume")
+    if np.any(linear - np.diag(np.diag(linear))):
+        # Mitsuba bounds a grid by the axis-aligned box of its transformed cube and extends
+        # edge values into the rest of that box: only axis-aligned grids mean the same there.
+        val.fail(
+            p + ("transform",),
+            "rotates the grid; Mitsuba supports only axis-aligned grids (scale and translate)",
+        )
+    corners = np.array([[x, y, z, 1.0] for x in (0, 1) for y in (0, 1) for z in (0, 1)])
+    if not np.all(np.abs(corners @ to_world.T)[:, :3] < MAX_COORDINATE):
+        val.fail(p + ("transform",), f"places the grid's box beyond +-{MAX_COORDINATE:g}")
     return Medium(name, kind, sigma_t, albedo, scale, phase, density, to_world, source)
 
 

@@ -28,6 +28,7 @@ from renderer.scene.model import (
     Shape,
     SpotLight,
 )
+from renderer.scene.triangles import kept_faces
 
 # Mitsuba starts camera rays at a near plane (default 0.01) and ends them at a far plane, both
 # in scene units: the segment before the near plane and its medium attenuation are skipped,
@@ -123,7 +124,9 @@ def _medium(mi: Any, m: Medium) -> dict[str, Any]:
     return {"type": "heterogeneous", "sigma_t": grid, **common}
 
 
-def _mesh(mi: Any, s: Shape, bsdfs: dict[str, Any], media: dict[str, Any]) -> Any:
+def _mesh(
+    mi: Any, s: Shape, faces: np.ndarray, bsdfs: dict[str, Any], media: dict[str, Any]
+) -> Any:
     props = mi.Properties()
     props["bsdf"] = bsdfs[s.material]
     if s.emission is not None:
@@ -135,14 +138,14 @@ def _mesh(mi: Any, s: Shape, bsdfs: dict[str, Any], media: dict[str, Any]) -> An
     mesh = mi.Mesh(
         s.name,
         vertex_count=len(s.vertices),
-        face_count=len(s.faces),
+        face_count=len(faces),
         props=props,
         has_vertex_normals=False,
         has_vertex_texcoords=False,
     )
     params = mi.traverse(mesh)
     params["vertex_positions"] = np.ravel(s.vertices.astype(np.float32))
-    params["faces"] = np.ravel(s.faces.astype(np.uint32))
+    params["faces"] = np.ravel(faces.astype(np.uint32))
     params.update()
     return mesh
 
@@ -215,8 +218,10 @@ def to_mitsuba_dict(scene: Scene) -> dict[str, Any]:
         },
         "sensor": sensor,
     }
-    for i, s in enumerate(scene.shapes):
-        d[f"shape_{i:03d}"] = _mesh(mi, s, bsdfs, media)
+    # The triangles our renderer keeps: degenerate ones are dropped for both.
+    for i, (s, keep) in enumerate(zip(scene.shapes, kept_faces(scene), strict=True)):
+        if keep.any():
+            d[f"shape_{i:03d}"] = _mesh(mi, s, s.faces[keep], bsdfs, media)
     for i, light in enumerate(scene.lights):
         d[f"light_{i:03d}"] = _light(mi, light)
     return d

@@ -90,7 +90,9 @@ class Shape:
     faces: np.ndarray  # (F, 3) int32
     material: str  # key into Scene.materials
     emission: RGB | None = None  # area light radiance, one-sided
-    interior: str | None = None  # medium names, None = vacuum
+    # Medium names. A shape naming neither leaves a path's medium unchanged; one naming only
+    # one side has vacuum on the other.
+    interior: str | None = None
     exterior: str | None = None
 
 
