@@ -1,7 +1,7 @@
 """Per-job steps of the workflow: merge the reference halves, compare one timed run.
 
-Each function is what one Snakemake job does; the scripts in workflow/scripts only unpack
-Snakemake's ``input``/``output`` objects and call these.
+Each function is what one Snakemake job does; the rules run ``python -m compare.steps``,
+whose thin adaptors parse the job's arguments and call these.
 """
 
 from __future__ import annotations

@@ -393,6 +393,11 @@ def build_index(spec: dict[str, Any]) -> None:
     for m in T.METRICS:
         if m != metric and f"{m}_mean" in summary:
             body.append(f"<details><summary>{e(_metric_label(m))}</summary>")
+            body.append(
+                '<p class="note">Bold: lowest mean of this metric (and ties). '
+                '<span class="flag">⚠</span> is the flag of the table above, computed from '
+                "relMSE in every table.</p>"
+            )
             body.append(T.overview_html(summary, m, link_scenes=True))
             body.append("</details>")
 
