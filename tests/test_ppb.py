@@ -18,7 +18,7 @@ r_i = r_1 i^(alpha - 1), so its error is variance plus a shrinking bias. The tes
   because each fitted slope is itself noisy (seed-to-seed spread about +-0.2 here). At this
   size the error is variance: a radius that never shrinks is not caught here (fixed radii of
   5-70x the default gave slopes -0.92 to -0.51). That the radius shrinks is checked exactly,
-  iteration by iteration, by test_each_iteration_gathers_with_its_scheduled_beam_radius, with
+  iteration by iteration, by test_each_iteration_gathers_with_its_scheduled_radius, with
   an unshrunk control;
 
 - compare the image mean of two variants with pt's the same way: a density grid (cbox-grid:
@@ -196,31 +196,40 @@ def test_light_paths_escaping_an_unbounded_medium_are_counted(tmp_path):
     assert ppb.stats()["beams_escaped"] > 0
 
 
-def test_each_iteration_gathers_with_its_scheduled_beam_radius():
+@pytest.mark.parametrize(
+    "key, alpha_key, dimension, common",
+    [
+        ("radius", "alpha", 1, {"surface_radius": 0.0}),  # beams, path-traced surfaces
+        ("surface_radius", "surface_alpha", 2, {"radius": 0.02, "alpha": 1.0}),  # photons
+    ],
+    ids=["beams", "surface-photons"],
+)
+def test_each_iteration_gathers_with_its_scheduled_radius(key, alpha_key, dimension, common):
     """What the kernels use: iteration i of ppb with alpha < 1 equals iteration i of ppb with a
-    fixed radius (alpha = 1) of r_1 i^(alpha - 1) (Knaus & Zwicker with d = 1; same seed, so the
-    same beams and camera paths). A radius that stopped shrinking differs."""
+    fixed radius (alpha = 1) of r_1 i^((alpha - 1) / d) (Knaus & Zwicker; d = 1 for beams, 2
+    for the default surface photons; same seed, so the same beams and camera paths). A radius
+    that stopped shrinking differs."""
     scene = load_small("cbox-fog", 8, 8)
-    common = {"light_paths": 512, "surface_radius": 0.0}
-    ppb = ProgressivePhotonBeams(
-        scene, seed=2, threads=2, params={**common, "radius": 0.05, "alpha": 0.6}
-    )
-    previous = np.zeros_like(ppb.image())
+    common = {"light_paths": 512, **common}
+    r1, alpha = 0.05, 0.6
+
+    def ppb(radius: float, a: float) -> ProgressivePhotonBeams:
+        params = {**common, key: radius, alpha_key: a}
+        return ProgressivePhotonBeams(scene, seed=2, threads=2, params=params)
+
+    scheduled = ppb(r1, alpha)
+    world = f"{'beam_radius' if key == 'radius' else key}_world"
+    previous = np.zeros_like(scheduled.image())
     for i in range(3):
-        ppb.run_iteration(i)
-        total = ppb.image() * (i + 1)
+        scheduled.run_iteration(i)
+        total = scheduled.image() * (i + 1)
         own, previous = total - previous, total
-        radius = 0.05 * (i + 1) ** (0.6 - 1)
-        fixed = ProgressivePhotonBeams(
-            scene, seed=2, threads=2, params={**common, "radius": radius, "alpha": 1.0}
-        )
+        fixed = ppb(r1 * (i + 1) ** ((alpha - 1) / dimension), 1.0)
         fixed.run_iteration(i)
         assert np.allclose(own, fixed.image(), rtol=1e-9, atol=1e-12), i
-        assert ppb.stats()["beam_radius_world"] == pytest.approx(fixed.stats()["beam_radius_world"])
+        assert scheduled.stats()[world] == pytest.approx(fixed.stats()[world])
         if i > 0:  # the control: the first radius kept (or ignored by the kernels) differs
-            unshrunk = ProgressivePhotonBeams(
-                scene, seed=2, threads=2, params={**common, "radius": 0.05, "alpha": 1.0}
-            )
+            unshrunk = ppb(r1, 1.0)
             unshrunk.run_iteration(i)
             assert not np.allclose(own, unshrunk.image(), rtol=1e-3), i
 
@@ -263,39 +272,3 @@ def test_sidecar_radii_are_world_units_and_slopes_follow_the_kernels():
         scene, seed=0, threads=1, params={"light_paths": 64, "surface_radius": 0, "alpha": 1}
     ).stats()
     assert traced["consistent"] is False and traced["expected_mse_slope"] == 0
-
-
-def test_each_iteration_gathers_with_its_scheduled_surface_radius():
-    """The default surface photons (d = 2): iteration i with surface_alpha < 1 equals iteration
-    i with a fixed surface radius of r_1 i^((alpha - 1) / 2); the unshrunk radius differs."""
-    scene = load_small("cbox-fog", 8, 8)
-    common = {"light_paths": 512, "radius": 0.02, "alpha": 1.0}
-    ppb = ProgressivePhotonBeams(
-        scene, seed=3, threads=2, params={**common, "surface_radius": 0.1, "surface_alpha": 0.5}
-    )
-    previous = np.zeros_like(ppb.image())
-    for i in range(3):
-        ppb.run_iteration(i)
-        total = ppb.image() * (i + 1)
-        own, previous = total - previous, total
-        radius = 0.1 * (i + 1) ** ((0.5 - 1) / 2)
-        fixed = ProgressivePhotonBeams(
-            scene,
-            seed=3,
-            threads=2,
-            params={**common, "surface_radius": radius, "surface_alpha": 1.0},
-        )
-        fixed.run_iteration(i)
-        assert np.allclose(own, fixed.image(), rtol=1e-9, atol=1e-12), i
-        assert ppb.stats()["surface_radius_world"] == pytest.approx(
-            fixed.stats()["surface_radius_world"]
-        )
-        if i > 0:
-            unshrunk = ProgressivePhotonBeams(
-                scene,
-                seed=3,
-                threads=2,
-                params={**common, "surface_radius": 0.1, "surface_alpha": 1.0},
-            )
-            unshrunk.run_iteration(i)
-            assert not np.allclose(own, unshrunk.image(), rtol=1e-3), i
