@@ -216,6 +216,15 @@ def test_images_that_are_not_whole_exr_files_are_refused(tmp_path):
         assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
         assert f"pgi: error: {tmp_path / name}: " in r.stderr and expected in r.stderr
         assert r.stdout == "", r.stdout
+    # A grey EXR is read as three equal channels: against a colour image that is a mistake.
+    grey = oiio.ImageBuf(oiio.ImageSpec(64, 64, 1, oiio.FLOAT))
+    grey.set_pixels(oiio.ROI(0, 64, 0, 64, 0, 1, 0, 1), rng.uniform(size=(64, 64, 1)).astype("f4"))
+    grey.write(str(tmp_path / "grey.exr"))
+    r = pgi("compare", str(tmp_path / "grey.exr"), str(tmp_path / "ref.exr"))
+    assert r.returncode == 2 and "cannot compare a grey image with a colour one" in r.stderr
+    assert r.stdout == "", r.stdout
+    r = pgi("compare", str(tmp_path / "grey.exr"), str(tmp_path / "grey.exr"), "--json")
+    assert r.returncode == 0 and json.loads(r.stdout)["mse"] == 0, r.stderr
 
 
 def test_interrupt_inside_mitsuba_exits_130(monkeypatch, capsys):

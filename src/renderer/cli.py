@@ -134,17 +134,21 @@ def cmd_reference(args: argparse.Namespace) -> int:
 def cmd_compare(args: argparse.Namespace) -> int:
     from compare.metrics import compare_images
 
-    from .imageio import read_exr
+    from .imageio import exr_channels, read_exr
 
     for path in (args.test, args.reference):
         if Path(path).suffix.lower() != ".exr":  # metrics are defined on linear HDR values
             raise PgiError(f"{path}: expected a linear .exr image")
     test, ref = read_exr(args.test), read_exr(args.reference)
+    grey = {path: exr_channels(path) == 1 for path in (args.test, args.reference)}
+    if len(set(grey.values())) > 1:  # read_exr repeats a grey channel: refuse it here
+        kinds = ", ".join(f"{p} is {'grey' if g else 'colour'}" for p, g in grey.items())
+        raise PgiError(f"cannot compare a grey image with a colour one: {kinds}")
     try:
         metrics = compare_images(test, ref)
     except ValueError as e:
         raise PgiError(f"{args.test} vs {args.reference}: {e}") from None
-    if args.json:  # undefined metrics (SSIM below 3x3 pixels) are null: NaN is not JSON
+    if args.json:  # undefined metrics (SSIM below 11x11 pixels) are null: NaN is not JSON
         defined = {
             k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in metrics.items()
         }

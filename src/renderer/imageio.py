@@ -38,6 +38,11 @@ def read_exr(path: str | Path) -> np.ndarray:
     return np.ascontiguousarray(pixels, dtype=np.float32)
 
 
+def exr_channels(path: str | Path) -> int:
+    """Channels stored in an EXR file that read_exr has accepted (1: grey, 3 or 4: colour)."""
+    return int(oiio.ImageBuf(str(path)).spec().nchannels)
+
+
 def _first_line(message: str) -> str:
     return message.strip().splitlines()[0] if message.strip() else ""
 
