@@ -134,14 +134,16 @@ def cmd_reference(args: argparse.Namespace) -> int:
 def cmd_compare(args: argparse.Namespace) -> int:
     from compare.metrics import compare_images
 
-    from .imageio import exr_channels, read_exr
+    from .imageio import read_exr_and_channels
 
     for path in (args.test, args.reference):
         if Path(path).suffix.lower() != ".exr":  # metrics are defined on linear HDR values
             raise PgiError(f"{path}: expected a linear .exr image")
-    test, ref = read_exr(args.test), read_exr(args.reference)
-    grey = {path: exr_channels(path) == 1 for path in (args.test, args.reference)}
-    if len(set(grey.values())) > 1:  # read_exr repeats a grey channel: refuse it here
+    (test, test_channels), (ref, ref_channels) = map(
+        read_exr_and_channels, (args.test, args.reference)
+    )
+    grey = {args.test: test_channels == 1, args.reference: ref_channels == 1}
+    if len(set(grey.values())) > 1:  # reading repeats a grey channel: refuse it here
         kinds = ", ".join(f"{p} is {'grey' if g else 'colour'}" for p, g in grey.items())
         raise PgiError(f"cannot compare a grey image with a colour one: {kinds}")
     try:

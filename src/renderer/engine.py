@@ -27,7 +27,11 @@ _MIN_MARCH_STEP = 1e-3
 class NativeScene:
     core: _core.Scene
     triangles: np.ndarray  # (T, 3, 3) float64, the triangles both Embree and the core use
-    dropped_triangles: int
+    kept: np.ndarray  # per face of every shape, in shape order: whether it is in `triangles`
+
+    @property
+    def dropped_triangles(self) -> int:
+        return int((~self.kept).sum())
 
 
 def camera_basis(camera: Camera, film: Film) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -171,4 +175,4 @@ def build_native_scene(scene: Scene, majorant_cell: int = MAJORANT_CELL) -> Nati
         medium(scene.camera.medium),
     )
     core.finalize()
-    return NativeScene(core, triangles, int((~keep).sum()))
+    return NativeScene(core, triangles, keep)

@@ -14,6 +14,11 @@ from .errors import PgiError
 
 def read_exr(path: str | Path) -> np.ndarray:
     """Read an image as float32 (H, W, 3); a single channel is repeated, alpha is dropped."""
+    return read_exr_and_channels(path)[0]
+
+
+def read_exr_and_channels(path: str | Path) -> tuple[np.ndarray, int]:
+    """read_exr's image, and how many channels the file stores (1: grey, 3 or 4: colour)."""
     path = Path(path)
     if not path.is_file():
         raise PgiError(f"{path}: no such image file")
@@ -35,12 +40,7 @@ def read_exr(path: str | Path) -> np.ndarray:
         pixels = pixels[:, :, :3]
     else:
         raise PgiError(f"{path}: expected 1, 3 or 4 channels, found {channels}")
-    return np.ascontiguousarray(pixels, dtype=np.float32)
-
-
-def exr_channels(path: str | Path) -> int:
-    """Channels stored in an EXR file that read_exr has accepted (1: grey, 3 or 4: colour)."""
-    return int(oiio.ImageBuf(str(path)).spec().nchannels)
+    return np.ascontiguousarray(pixels, dtype=np.float32), channels
 
 
 def _first_line(message: str) -> str:

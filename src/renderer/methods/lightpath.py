@@ -14,7 +14,6 @@ from .. import _core
 from ..engine import NativeScene
 from ..errors import PgiError
 from ..scene.model import PointLight, Scene, SpotLight
-from ..scene.triangles import kept_faces
 from ..tracer import EmbreeTracer, RayBatch
 
 # Probe directions per emitter: the medium is the majority answer.
@@ -49,7 +48,7 @@ def locate_media(
     tri = native.triangles
     normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-    inside, outside, named = _triangle_media(scene, ids)
+    inside, outside, named = _triangle_media(native, scene, ids)
     eps = 1e-5 * float(np.ptp(tri.reshape(-1, 3), axis=0).max())
     batch = RayBatch(n)
     origin = points.astype(np.float64).copy()
@@ -75,25 +74,25 @@ def locate_media(
     return result
 
 
-def _kept(scene: Scene) -> np.ndarray:
-    """The triangles build_native_scene keeps (it drops degenerate ones), in shape order."""
-    return np.concatenate(kept_faces(scene))
-
-
-def _per_triangle(scene: Scene, values: list) -> np.ndarray:
-    """One value per shape, repeated over the shape's native triangles."""
+def _per_triangle(native: NativeScene, scene: Scene, values: list) -> np.ndarray:
+    """One value per shape, repeated over the shape's native triangles (the ones
+    build_native_scene kept)."""
     pairs = zip(scene.shapes, values, strict=True)
     per = np.concatenate([np.full(len(s.faces), v) for s, v in pairs])
-    return per[_kept(scene)]
+    return per[native.kept]
 
 
-def _triangle_media(scene: Scene, ids: dict[str, int]):
+def _triangle_media(native: NativeScene, scene: Scene, ids: dict[str, int]):
     """Interior, exterior and 'names a medium' per native triangle (same order as the core)."""
     shapes = scene.shapes
-    inside = _per_triangle(scene, [-1 if s.interior is None else ids[s.interior] for s in shapes])
-    outside = _per_triangle(scene, [-1 if s.exterior is None else ids[s.exterior] for s in shapes])
+    inside = _per_triangle(
+        native, scene, [-1 if s.interior is None else ids[s.interior] for s in shapes]
+    )
+    outside = _per_triangle(
+        native, scene, [-1 if s.exterior is None else ids[s.exterior] for s in shapes]
+    )
     named = _per_triangle(
-        scene, [s.interior is not None or s.exterior is not None for s in scene.shapes]
+        native, scene, [s.interior is not None or s.exterior is not None for s in shapes]
     )
     return inside.astype(np.int32), outside.astype(np.int32), named.astype(bool)
 
@@ -112,7 +111,7 @@ def emission_media(native: NativeScene, tracer: EmbreeTracer, scene: Scene, seed
     tri = native.triangles
     ntri = len(tri)
     per_triangle = np.full(ntri, -1, np.int32)
-    emitting = _emitting_triangles(scene)
+    emitting = _emitting_triangles(native, scene)
     lights_area = sum(1 for s in scene.shapes if s.emission is not None)
     point_positions = []
     for light in scene.lights:
@@ -164,7 +163,7 @@ def _reaches_camera_freely(
     free = np.ones(n, bool)
     if n == 0:
         return free
-    _, _, named = _triangle_media(scene, _medium_names(scene))
+    _, _, named = _triangle_media(native, scene, _medium_names(scene))
     eps = 1e-5 * float(np.ptp(native.triangles.reshape(-1, 3), axis=0).max())
     camera = np.asarray(scene.camera.origin, np.float64)
     origin = points.astype(np.float64).copy()
@@ -199,8 +198,9 @@ def _majority(votes: np.ndarray) -> np.ndarray:
     return out
 
 
-def _emitting_triangles(scene: Scene) -> np.ndarray:
-    return np.flatnonzero(_per_triangle(scene, [s.emission is not None for s in scene.shapes]))
+def _emitting_triangles(native: NativeScene, scene: Scene) -> np.ndarray:
+    emits = [s.emission is not None for s in scene.shapes]
+    return np.flatnonzero(_per_triangle(native, scene, emits))
 
 
 class LightPaths:
