@@ -109,6 +109,7 @@ def main(argv: list[str]) -> int:
             "seed": a.seed,
             "threads": a.threads,
             "version": "fake",
+            "set": a.set,
             "scene": scene,
         }
         dest = out if budget is None else out.with_name(f"{out.stem}.t{tag(budget)}.exr")

@@ -19,7 +19,7 @@ SCHEMA = str(ROOT / "configs" / "schema.yaml")
 GOOD = {"scenes": ["cbox"], "methods": ["pt"], "budgets": [1, 2], "seeds": [1]}
 
 
-@pytest.mark.parametrize("name", ["default", "full", "tiny"])
+@pytest.mark.parametrize("name", ["default", "full", "tiny", "media"])
 def test_shipped_configs_validate(name: str) -> None:
     cfg = yaml.safe_load((ROOT / "configs" / f"{name}.yaml").read_text())
     validate(cfg, SCHEMA)
@@ -146,3 +146,61 @@ def test_plan_loads_each_scene_with_its_overrides(change: dict, expect: str) -> 
         make_plan(cfg, ROOT, check_methods=False)
     good = {**GOOD, "scenes": ["cbox", "cbox-fog"], "set": ["film.width=8"]}
     assert list(make_plan(good, ROOT, check_methods=False).scenes) == ["cbox", "cbox-fog"]
+
+
+DELTA = {"pt-delta": {"method": "pt", "set": ["integrator.estimator=delta"]}}
+
+
+def test_variants_are_study_methods(tmp_path: Path) -> None:
+    """A variant is one more method of the study: its label names its runs, and its render
+    runs its own method with the scene's overrides, then its own, then method_args."""
+    cfg = {
+        **GOOD,
+        "scenes_dir": str(_scenes(tmp_path)),
+        "pgi": _fake_pgi(tmp_path),
+        "set": ["film.width=8"],
+        "variants": {**DELTA, "lt-short": {"method": "lt", "set": ["method.x=1"]}},
+        "method_args": {"pt": ["--spp", "4"]},
+        "baseline": "pt-delta",
+    }
+    validate(cfg, SCHEMA)
+    plan = make_plan(cfg, tmp_path, check_scenes=False)
+    assert plan.methods == ("pt", "pt-delta", "lt-short")
+    assert plan.base_method("pt-delta") == "pt" and plan.base_method("pt") == "pt"
+    assert plan.render_args("cbox", "pt-delta") == [
+        "--method", "pt", "--set", "film.width=8",
+        "--set", "integrator.estimator=delta", "--spp", "4",
+    ]  # fmt: skip
+    plain = ["--method", "pt", "--set", "film.width=8", "--spp", "4"]
+    assert plan.render_args("cbox", "pt") == plain
+    assert plan.variants["pt-delta"].describe() == "pt with integrator.estimator=delta"
+    excluded = make_plan({**cfg, "exclude_methods": ["lt-short"]}, tmp_path, check_scenes=False)
+    assert excluded.methods == ("pt", "pt-delta") and "lt-short" not in excluded.variants
+
+
+@pytest.mark.parametrize(
+    ("variants", "expect"),
+    [
+        ({"lt": {"method": "pt"}}, r"variants: 'lt': the label is a method id"),
+        ({"pt-x": {"method": "ptt"}}, r"variants: 'pt-x': unknown method 'ptt'; .*pt, lt"),
+        (
+            {"pt-big": {"method": "pt", "set": ["film.width=64"]}},
+            r"variants: 'pt-big': set 'film.width=64' would change the scene its reference",
+        ),
+        (
+            {"pt-d": {"method": "pt", "set": ["integrator.max_depth=2"]}},
+            r"would change the scene its reference shows",
+        ),
+    ],
+)
+def test_plan_refuses_bad_variants(tmp_path: Path, variants: dict, expect: str) -> None:
+    cfg = {**GOOD, "scenes_dir": str(_scenes(tmp_path)), "pgi": _fake_pgi(tmp_path)}
+    with pytest.raises(PlanError, match=expect):
+        make_plan({**cfg, "variants": variants}, tmp_path, check_scenes=False)
+
+
+def test_plan_loads_each_scene_with_each_variant() -> None:
+    bad = {"pt-x": {"method": "pt", "set": ["integrator.estimator=woodcock"]}}
+    with pytest.raises(PlanError, match=r"variants: 'pt-x' on scene: 'cbox': .*estimator"):
+        make_plan({**GOOD, "variants": bad}, ROOT)
+    assert make_plan({**GOOD, "variants": DELTA}, ROOT).methods == ("pt", "pt-delta")

@@ -270,6 +270,22 @@ def test_report_files(report: Path) -> None:
     assert d["width"] == 32 and d["height"] == 24 and set(d["images"]) == {"pt", "lt"}
 
 
+def test_a_variant_counts_as_its_method_among_the_expected_winners(report: Path) -> None:
+    """A study of pt-delta (a variant of pt) and lt: pt is in the study, and a win of
+    pt-delta is a win of pt."""
+    from compare.report.build import _about_scene
+
+    summary = pd.read_csv(report / "tables" / "summary.csv")
+    summary["method"] = summary.method.replace({"pt": "pt-delta"})
+    scene_file = report.parent / "scene.yaml"
+    text = _about_scene(
+        str(scene_file), "toy", summary, "relmse", ["pt-delta", "lt"], {"pt-delta": "pt"}
+    )
+    assert "<b>Expected to win:</b> pt, bdpt (not in this study)." in text
+    won = r"<b>Won</b> at [^:]+: (pt-delta \(as expected|lt \(not among the expected)"
+    assert re.search(won, text)
+
+
 @needs_chromium
 def test_report_in_headless_chromium(report: Path, tmp_path: Path) -> None:
     for page in ("index.html", "scene-toy.html"):

@@ -8,6 +8,7 @@ with the real `pgi` when its reference renderer is available.
 from __future__ import annotations
 
 import importlib.util
+import json
 import os
 import re
 import shutil
@@ -230,6 +231,31 @@ def test_slurm_profile_dry_run_parses(study: Path) -> None:
     p = snakemake(study, *args, env={"FAKE_PGI_METHODS": "pt,lt,sppm"})
     c = job_counts(p.stdout)
     assert c.get("render") == 4
+
+
+def test_variant_renders_with_its_own_settings(study: Path) -> None:
+    """A variant renders its own method with its own overrides, under its own label, against
+    the scene's one reference; the report says what it is."""
+    variant = {"pt-delta": {"method": "pt", "set": ["integrator.estimator=delta"]}}
+    write_config(
+        study / "var.yaml",
+        study / "scenes",
+        results_dir="results",
+        reports_dir="reports-var",
+        variants=variant,
+    )
+    env = {"FAKE_PGI_METHODS": "pt,lt,sppm"}
+    c = job_counts(snakemake(study, "--configfile", "var.yaml", "-n", env=env).stdout)
+    assert c.get("render") == 2 and "reference_half" not in c  # the variant's two seeds only
+    snakemake(study, "--configfile", "var.yaml", env=env)
+    side = json.loads((study / "results/render/alpha/pt-delta/s1/run.t1.json").read_text())
+    assert side["method"] == "pt" and side["set"] == ["integrator.estimator=delta"]
+    plain = json.loads((study / "results/render/alpha/pt/s1/run.t1.json").read_text())
+    assert plain["set"] == []
+    runs = pd.read_csv(study / "reports-var" / "tables" / "runs.csv")
+    assert set(runs.method) == {"pt", "lt", "pt-delta"}
+    index = (study / "reports-var" / "index.html").read_text()
+    assert "<b>pt-delta</b>: pt with integrator.estimator=delta" in index
 
 
 def test_thread_mismatch_is_an_error(tmp_path: Path, study: Path) -> None:

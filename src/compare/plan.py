@@ -2,6 +2,8 @@
 
 The Snakefile calls :func:`make_plan` once; nothing in the rules names a scene or a method.
 Methods come from the config, or from `pgi methods` when the config says ``methods: all``.
+A *variant* is a method run with settings of its own under a label of its own (``pt-delta``:
+``pt`` with delta tracking); to the rules and the report it is one more method.
 """
 
 from __future__ import annotations
@@ -33,6 +35,23 @@ class SceneSpec:
     reference_spp: int = 1024
 
 
+# The settings a variant may change: they change how an image is estimated, not what it
+# shows (ray marching's bias is there to be measured), so every variant is compared with the
+# scene's one reference.
+VARIANT_SCENE_KEYS = ("integrator.estimator", "integrator.march_step", "integrator.rr_depth")
+# ... of which these only our renderer reads: a Mitsuba variant with them would repeat Mitsuba.
+OURS_ONLY_KEYS = ("integrator.estimator", "integrator.march_step")
+
+
+@dataclass(frozen=True)
+class VariantSpec:
+    method: str  # the `pgi methods` id it runs
+    set: tuple[str, ...] = ()  # `--set` overrides: method.* parameters and VARIANT_SCENE_KEYS
+
+    def describe(self) -> str:
+        return f"{self.method} with {', '.join(self.set)}" if self.set else self.method
+
+
 @dataclass(frozen=True)
 class Plan:
     name: str
@@ -48,6 +67,7 @@ class Plan:
     seeds: tuple[int, ...]
     ref_seed: int
     method_args: dict[str, tuple[str, ...]] = field(default_factory=dict)
+    variants: dict[str, VariantSpec] = field(default_factory=dict)
     baseline: str = "pt"
     primary_metric: str = "relmse"
     ref_quality_factor: float = 10.0
@@ -67,6 +87,18 @@ class Plan:
         for kv in self.scenes[scene].set:
             out += ["--set", kv]
         return out
+
+    def base_method(self, label: str) -> str:
+        """The `pgi methods` id a study method runs (itself, unless it is a variant)."""
+        return self.variants[label].method if label in self.variants else label
+
+    def render_args(self, scene: str, label: str) -> list[str]:
+        """`pgi render` arguments of one study method on one scene, after the scene: the
+        method, the scene's overrides, the variant's settings, then `method_args`."""
+        out = ["--method", self.base_method(label), *self.scene_set_args(scene)]
+        for kv in self.variants[label].set if label in self.variants else ():
+            out += ["--set", kv]
+        return out + list(self.method_args.get(self.base_method(label), ()))
 
 
 def budget_tag(seconds: float) -> str:
@@ -113,13 +145,49 @@ def available_methods(pgi: tuple[str, ...]) -> tuple[list[str], list[str]]:
     return ids, planned
 
 
-def check_scene(spec: SceneSpec) -> None:
-    """Load a scene with the study's overrides: a misspelt `set` key stops the plan, not the
-    first render (after the references may have run for minutes)."""
+def check_scene(spec: SceneSpec, extra: tuple[str, ...] = (), where: str = "scenes") -> None:
+    """Load a scene with the study's overrides (and a variant's, ``extra``): a misspelt `set`
+    key stops the plan, not the first render (after the references may have run for minutes)."""
+    from renderer.engine import march_step  # the native core: only when scenes are checked
+
+    path = spec.path / "scene.yaml"
     try:
-        load_scene(spec.path / "scene.yaml", spec.set)
+        scene = load_scene(path, spec.set + extra)
+        for medium in scene.media.values():  # the step is checked when the core is built
+            if medium.type == "grid":
+                march_step(medium, scene.integrator.march_step, str(path))
     except PgiError as e:
-        raise PlanError(f"scenes: '{spec.name}': {e}") from e
+        raise PlanError(f"{where}: '{spec.name}': {e}") from e
+
+
+def make_variants(
+    config: dict[str, Any], avail: list[str], planned: list[str], check: bool
+) -> dict[str, VariantSpec]:
+    """The config's ``variants``, checked: a label of its own, a method `pgi methods` lists,
+    and only settings that leave the expected image unchanged (ray marching's bias aside)."""
+    variants: dict[str, VariantSpec] = {}
+    listed = [] if config["methods"] == "all" else list(config["methods"])
+    for label, entry in (config.get("variants") or {}).items():
+        spec = VariantSpec(method=str(entry["method"]), set=tuple(entry.get("set") or ()))
+        where = f"variants: '{label}'"
+        if label in listed or (check and label in avail + planned):
+            raise PlanError(f"{where}: the label is a method id of `pgi methods`; pick another")
+        if check and spec.method not in avail:
+            raise PlanError(
+                f"{where}: unknown method '{spec.method}'; "
+                f"`pgi methods` lists: {', '.join(avail) or 'none'}"
+            )
+        for kv in spec.set:
+            key = kv.split("=", 1)[0]
+            if not key.startswith("method.") and key not in VARIANT_SCENE_KEYS:
+                raise PlanError(
+                    f"{where}: set '{kv}' would change the scene its reference shows; a "
+                    f"variant may set method.KEY or {', '.join(VARIANT_SCENE_KEYS)}"
+                )
+            if spec.method == "mitsuba" and key in OURS_ONLY_KEYS:
+                raise PlanError(f"{where}: set '{kv}': Mitsuba has no such setting")
+        variants[label] = spec
+    return variants
 
 
 def make_plan(
@@ -168,12 +236,19 @@ def make_plan(
         avail, planned = available_methods(pgi)
     else:
         avail, planned = [], []
+    variants = make_variants(config, avail, planned, check=check_methods or wanted == "all")
+    labels = [v for v in variants if v not in exclude]
+    if check_scenes and str(config.get("pgi", "auto")) == "auto":
+        for label in labels:
+            scene_keys = tuple(kv for kv in variants[label].set if not kv.startswith("method."))
+            for spec in scenes.values() if scene_keys else ():
+                check_scene(spec, scene_keys, f"variants: '{label}' on scene")
     if wanted == "all":
-        methods = [m for m in avail if m not in exclude]
+        methods = [m for m in avail if m not in exclude] + labels
         if not methods:
             raise PlanError("methods: 'all' but `pgi methods` lists no method")
     else:
-        methods = [m for m in wanted if m not in exclude]
+        methods = [m for m in wanted if m not in exclude] + labels
         if not methods:
             raise PlanError("methods: no method left after exclude_methods")
     if check_methods or wanted == "all":
@@ -181,7 +256,7 @@ def make_plan(
         # announced but not implemented may be excluded or configured ahead of its arrival.
         for key, names, known in (
             ("methods", [] if wanted == "all" else wanted, avail),
-            ("exclude_methods", sorted(exclude), avail + planned),
+            ("exclude_methods", sorted(exclude), avail + planned + list(variants)),
             ("method_args", list(config.get("method_args") or {}), avail + planned),
         ):
             unknown = [m for m in names if m not in known]
@@ -226,6 +301,7 @@ def make_plan(
         seeds=tuple(int(s) for s in config["seeds"]),
         ref_seed=ref_seed,
         method_args={k: tuple(v) for k, v in (config.get("method_args") or {}).items()},
+        variants={label: variants[label] for label in labels},
         baseline=baseline,
         primary_metric=str(config.get("primary_metric", "relmse")),
         ref_quality_factor=float(config.get("ref_quality_factor", 10.0)),

@@ -46,6 +46,10 @@ def set_args(wildcards):
     return " ".join(shlex.quote(a) for a in PLAN.scene_set_args(wildcards.scene))
 
 
+def render_args(wildcards):
+    return " ".join(shlex.quote(a) for a in PLAN.render_args(wildcards.scene, wildcards.method))
+
+
 def run_prefix(scene, method, seed):
     return f"{R}/render/{scene}/{method}/s{seed}/run"
 

@@ -14,9 +14,10 @@ rule render:
         final_json=f"{R}/render/{{scene}}/{{method}}/s{{seed}}/run.json",
     params:
         scene=scene_arg,
-        sets=set_args,
+        # --method (a variant's own method), --set overrides (the scene's, then the
+        # variant's) and method_args
+        method_args=render_args,
         snapshots=PLAN.snapshot_arg(),
-        extra=lambda w: " ".join(shlex.quote(a) for a in PLAN.method_args.get(w.method, ())),
         # The configured count, whatever Snakemake grants (--cores below it would lower
         # {threads}, and compare refuses runs with other counts); as a param, a change of it
         # reruns the render (Snakemake ignores changes of `threads:`).
@@ -29,6 +30,6 @@ rule render:
     benchmark:
         f"{R}/benchmarks/render/{{scene}}/{{method}}/s{{seed}}.tsv"
     shell:
-        "{PGI} render {params.scene:q} --method {wildcards.method} --seed {wildcards.seed}"
-        " --threads {params.nthreads} --snapshots {params.snapshots} {params.sets} {params.extra}"
+        "{PGI} render {params.scene:q} {params.method_args} --seed {wildcards.seed}"
+        " --threads {params.nthreads} --snapshots {params.snapshots}"
         " -o {output.final:q} > {log:q} 2>&1"

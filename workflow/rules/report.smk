@@ -16,6 +16,7 @@ def report_scene_spec(wildcards):
             "ref_json": f"{R}/reference/{s}/ref.json",
             "seed": PLAN.seeds[0],
             "methods": list(PLAN.methods),
+            "bases": {m: PLAN.base_method(m) for m in PLAN.methods},
             "budgets": PLAN.budget_tags,
             "snapshots": {
                 m: snapshot_files(s, m, PLAN.seeds[0]) for m in PLAN.methods
@@ -70,6 +71,7 @@ rule report_index:
                 "tables": f"{REP}/tables",
                 "scenes": list(PLAN.scenes),
                 "methods": list(PLAN.methods),
+                "variants": {k: v.describe() for k, v in PLAN.variants.items()},
                 "metric": PLAN.primary_metric,
                 "baseline": PLAN.baseline,
                 "factor": PLAN.ref_quality_factor,

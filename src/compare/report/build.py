@@ -105,9 +105,15 @@ def _legend(metric: str, factor: float) -> str:
 
 
 def _about_scene(
-    scene_file: str | None, scene: str, summary: pd.DataFrame, metric: str, methods: list[str]
+    scene_file: str | None,
+    scene: str,
+    summary: pd.DataFrame,
+    metric: str,
+    methods: list[str],
+    bases: dict[str, str],
 ) -> str:
-    """What the scene file says it is for, beside the method that actually won."""
+    """What the scene file says it is for, beside the method that actually won. ``bases``
+    maps each study method to the `pgi methods` id it runs (a variant to its method)."""
     if not scene_file or not Path(scene_file).is_file():
         return ""
     doc = yaml.safe_load(Path(scene_file).read_text()) or {}
@@ -118,13 +124,15 @@ def _about_scene(
         parts.append(f"<p><b>Stresses:</b> {e(', '.join(map(str, doc['stresses'])))}.</p>")
     expected = [str(m) for m in doc.get("expected_winners") or []]
     if expected:
-        shown = [m if m in methods else f"{m} (not in this study)" for m in expected]
+        present = {bases.get(m, m) for m in methods}
+        shown = [m if m in present else f"{m} (not in this study)" for m in expected]
         parts.append(f"<p><b>Expected to win:</b> {e(', '.join(shown))}.")
         best = T.best_methods(summary[summary.scene == scene], metric)
         if not best.empty:
             last = best.sort_values("budget").iloc[-1]
             won = str(last.method)
-            verdict = "as expected" if won in expected else "not among the expected"
+            as_expected = bases.get(won, won) in expected
+            verdict = "as expected" if as_expected else "not among the expected"
             cell = summary[
                 (summary.scene == last.scene)
                 & (summary.method == won)
@@ -172,7 +180,9 @@ def build_scene_page(spec: dict[str, Any]) -> None:
         f"Images shown are seed {spec['seed']}; tables and plots use every seed.</p>",
     ]
 
-    body.append(_about_scene(spec.get("scene_file"), scene, tabs["summary"], metric, methods))
+    bases = spec.get("bases") or {}
+    about = _about_scene(spec.get("scene_file"), scene, tabs["summary"], metric, methods, bases)
+    body.append(about)
 
     # reference quality
     body.append("<h2>Reference</h2>")
@@ -359,6 +369,10 @@ def build_index(spec: dict[str, Any]) -> None:
         f"{int(runs.seed.nunique())} seed(s). Generated {now}. Tables as CSV and Markdown in "
         '<a href="tables/">tables/</a>.</p>',
     ]
+    variants: dict[str, str] = spec.get("variants") or {}
+    if variants:
+        items = "; ".join(f"<b>{e(label)}</b>: {e(what)}" for label, what in variants.items())
+        body.append(f'<p class="note">Variants (a method with settings of its own): {items}.</p>')
 
     # winners
     best = T.best_methods(summary, metric)
