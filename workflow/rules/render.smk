@@ -15,8 +15,8 @@ rule render:
     params:
         scene=scene_arg,
         # --method (a variant's own method), --set overrides (the scene's, then the
-        # variant's) and method_args
-        method_args=render_args,
+        # variant's) and the config's method_args
+        args=render_args,
         snapshots=PLAN.snapshot_arg(),
         # The configured count, whatever Snakemake grants (--cores below it would lower
         # {threads}, and compare refuses runs with other counts); as a param, a change of it
@@ -30,6 +30,6 @@ rule render:
     benchmark:
         f"{R}/benchmarks/render/{{scene}}/{{method}}/s{{seed}}.tsv"
     shell:
-        "{PGI} render {params.scene:q} {params.method_args} --seed {wildcards.seed}"
+        "{PGI} render {params.scene:q} {params.args} --seed {wildcards.seed}"
         " --threads {params.nthreads} --snapshots {params.snapshots}"
         " -o {output.final:q} > {log:q} 2>&1"
