@@ -99,7 +99,11 @@ def main(argv: list[str]) -> int:
         img = np.maximum(t + 0.2 * quality / np.sqrt(8 * secs) * t * noise, 0)
         side = {
             "method": a.method,
-            "params": {},
+            "params": {
+                kv.split("=", 1)[0][len("method.") :]: kv.split("=", 1)[1]
+                for kv in a.set
+                if kv.startswith("method.")
+            },
             "iterations": int(10 * secs),
             "spp": int(10 * secs),
             "render_seconds": secs * 1.01,
@@ -109,7 +113,7 @@ def main(argv: list[str]) -> int:
             "seed": a.seed,
             "threads": a.threads,
             "version": "fake",
-            "set": a.set,
+            "overrides": [kv for kv in a.set if not kv.startswith("method.")],
             "scene": scene,
         }
         dest = out if budget is None else out.with_name(f"{out.stem}.t{tag(budget)}.exr")

@@ -249,9 +249,9 @@ def test_variant_renders_with_its_own_settings(study: Path) -> None:
     assert c.get("render") == 2 and "reference_half" not in c  # the variant's two seeds only
     snakemake(study, "--configfile", "var.yaml", env=env)
     side = json.loads((study / "results/render/alpha/pt-delta/s1/run.t1.json").read_text())
-    assert side["method"] == "pt" and side["set"] == ["integrator.estimator=delta"]
+    assert side["method"] == "pt" and side["overrides"] == ["integrator.estimator=delta"]
     plain = json.loads((study / "results/render/alpha/pt/s1/run.t1.json").read_text())
-    assert plain["set"] == []
+    assert plain["overrides"] == []
     runs = pd.read_csv(study / "reports-var" / "tables" / "runs.csv")
     assert set(runs.method) == {"pt", "lt", "pt-delta"}
     index = (study / "reports-var" / "index.html").read_text()
@@ -302,3 +302,8 @@ def test_real_renderer_tiny(tmp_path: Path) -> None:
     assert len(runs) > 0 and (runs.render_seconds > 0).all()
     assert (rep / "index.html").is_file()
     assert runs.threads.eq(2).all()
+    # the variant reached the real renderer with its own override
+    assert set(runs.method) == {"pt", "mitsuba", "pt-rr1"}
+    side = tmp_path / "results" / "tiny" / "render" / "cbox-fog" / "pt-rr1" / "s1" / "run.json"
+    overrides = json.loads(side.read_text())["overrides"]
+    assert overrides[-1] == "integrator.rr_depth=1" and "film.width=32" in overrides
