@@ -88,17 +88,22 @@ class Plan:
             out += ["--set", kv]
         return out
 
+    def variant(self, label: str) -> VariantSpec:
+        """What a study method runs: a variant's spec, or the method itself unchanged."""
+        return self.variants.get(label) or VariantSpec(method=label)
+
     def base_method(self, label: str) -> str:
         """The `pgi methods` id a study method runs (itself, unless it is a variant)."""
-        return self.variants[label].method if label in self.variants else label
+        return self.variant(label).method
 
     def render_args(self, scene: str, label: str) -> list[str]:
         """`pgi render` arguments of one study method on one scene, after the scene: the
         method, the scene's overrides, the variant's settings, then `method_args`."""
-        out = ["--method", self.base_method(label), *self.scene_set_args(scene)]
-        for kv in self.variants[label].set if label in self.variants else ():
+        run = self.variant(label)
+        out = ["--method", run.method, *self.scene_set_args(scene)]
+        for kv in run.set:
             out += ["--set", kv]
-        return out + list(self.method_args.get(self.base_method(label), ()))
+        return out + list(self.method_args.get(run.method, ()))
 
 
 def budget_tag(seconds: float) -> str:
