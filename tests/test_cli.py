@@ -280,6 +280,21 @@ def test_unwritable_outputs_are_refused_before_rendering(tmp_path):
     assert sorted(p.name for p in tmp_path.rglob("*")) == names
 
 
+def test_a_setting_the_method_does_not_read_is_refused(tmp_path):
+    """Mitsuba has no transmittance estimator of ours: `--set integrator.estimator=delta`
+    would render plain Mitsuba under another name."""
+    out = tmp_path / "m.exr"
+    for kv in ("integrator.estimator=delta", "integrator.march_step=0.1"):
+        r = pgi("render", "smoke", "--method", "mitsuba", "--spp", "1", *small("--set", kv),
+                "-o", str(out))  # fmt: skip
+        assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+        assert f"--set {kv}: method mitsuba does not read this setting" in r.stderr, r.stderr
+    assert list(tmp_path.iterdir()) == []
+    r = pgi("render", "smoke", "--method", "pt", "--spp", "1",
+            *small("--set", "integrator.estimator=delta"), "-o", str(out))  # fmt: skip
+    assert r.returncode == 0 and out.is_file(), r.stderr
+
+
 def test_validate_version_reference_and_every_method_succeed(tmp_path):
     """The success paths a user takes first: each writes what it says and exits 0."""
     from renderer.imageio import read_exr

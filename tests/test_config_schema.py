@@ -203,4 +203,8 @@ def test_plan_loads_each_scene_with_each_variant() -> None:
     bad = {"pt-x": {"method": "pt", "set": ["integrator.estimator=woodcock"]}}
     with pytest.raises(PlanError, match=r"variants: 'pt-x' on scene: 'cbox': .*estimator"):
         make_plan({**GOOD, "variants": bad}, ROOT)
+    # as `pgi render` does: Mitsuba has no estimator of ours, the variant would repeat it
+    unread = {"mi-delta": {"method": "mitsuba", "set": ["integrator.estimator=delta"]}}
+    with pytest.raises(PlanError, match=r"variants: 'mi-delta': --set integrator.estimator="):
+        make_plan({**GOOD, "variants": unread}, ROOT)
     assert make_plan({**GOOD, "variants": DELTA}, ROOT).methods == ("pt", "pt-delta")

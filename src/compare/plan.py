@@ -20,6 +20,7 @@ from typing import Any
 # The comment line with which `pgi methods` announces methods not implemented yet.
 from renderer.cli import PLANNED_PREFIX
 from renderer.errors import PgiError
+from renderer.methods import check_overrides
 from renderer.scene import load_scene
 
 
@@ -39,8 +40,6 @@ class SceneSpec:
 # shows (ray marching's bias is there to be measured), so every variant is compared with the
 # scene's one reference.
 VARIANT_SCENE_KEYS = ("integrator.estimator", "integrator.march_step", "integrator.rr_depth")
-# ... of which these only our renderer reads: a Mitsuba variant with them would repeat Mitsuba.
-OURS_ONLY_KEYS = ("integrator.estimator", "integrator.march_step")
 
 
 @dataclass(frozen=True)
@@ -189,8 +188,6 @@ def make_variants(
                     f"{where}: set '{kv}' would change the scene its reference shows; a "
                     f"variant may set method.KEY or {', '.join(VARIANT_SCENE_KEYS)}"
                 )
-            if spec.method == "mitsuba" and key in OURS_ONLY_KEYS:
-                raise PlanError(f"{where}: set '{kv}': Mitsuba has no such setting")
         variants[label] = spec
     return variants
 
@@ -246,6 +243,10 @@ def make_plan(
     if check_scenes and str(config.get("pgi", "auto")) == "auto":
         for label in labels:
             scene_keys = tuple(kv for kv in variants[label].set if not kv.startswith("method."))
+            try:  # as `pgi render` would, before any job runs
+                check_overrides(variants[label].method, scene_keys)
+            except PgiError as e:
+                raise PlanError(f"variants: '{label}': {e}") from e
             for spec in scenes.values() if scene_keys else ():
                 check_scene(spec, scene_keys, f"variants: '{label}' on scene")
     if wanted == "all":

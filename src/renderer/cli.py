@@ -72,6 +72,7 @@ def _split_sets(items: list[str], command: str = "render") -> tuple[list[str], d
 
 def cmd_render(args: argparse.Namespace) -> int:
     from .imageio import check_output_path
+    from .methods import check_overrides
     from .progressive import RenderSettings, render, snapshot_path
     from .scene import load_scene
 
@@ -83,6 +84,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     for path in snapshot_files:
         check_output_path(path)
     overrides, params = _split_sets(args.set)
+    check_overrides(args.method, overrides)
     scene = load_scene(args.scene, overrides)
     settings = RenderSettings(
         method=args.method,

@@ -48,6 +48,20 @@ NOT_YET_IMPLEMENTED: dict[str, str] = {
 }
 
 
+# Scene settings a method does not read: overriding one would render the method unchanged
+# under another name (a study variant, say), so a render refuses it.
+UNREAD_SETTINGS: dict[str, tuple[str, ...]] = {
+    "mitsuba": ("integrator.estimator", "integrator.march_step"),  # our media estimators
+}
+
+
+def check_overrides(method_id: str, overrides: list[str] | tuple[str, ...]) -> None:
+    """Refuses `key=value` scene overrides that the method would ignore."""
+    for kv in overrides:
+        if kv.split("=", 1)[0] in UNREAD_SETTINGS.get(method_id, ()):
+            raise PgiError(f"--set {kv}: method {method_id} does not read this setting")
+
+
 def method_ids() -> list[str]:
     return list(_METHODS)
 
