@@ -96,6 +96,20 @@ def test_methods_lists_pt_and_mitsuba():
     assert r.stdout.splitlines()[-1] == "# not yet implemented: bdpt, vpl, vrl, vbl"
 
 
+def test_method_table_in_the_docs_matches_pgi_methods():
+    """docs/methods.md's method table is the one `pgi methods` and scenes refer to."""
+    from renderer.methods import NOT_YET_IMPLEMENTED, method_ids
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "methods.md").read_text()
+    table = text.split("## The method table", 1)[1].split("\n## ", 1)[0]
+    rows = [line.split("|") for line in table.splitlines() if line.startswith("| `")]
+    status = {cells[1].strip().strip("`"): cells[4].strip() for cells in rows}
+    assert status == {
+        **{m: "implemented" for m in method_ids()},
+        **{m: "not yet" for m in NOT_YET_IMPLEMENTED},
+    }
+
+
 BAD_SCENES = {
     "broken-yaml": ("camera: [unclosed\n", "scene.yaml"),
     "unknown-key": (None, "colour"),

@@ -170,7 +170,7 @@ def test_record_bound_is_an_error():
         threads=1,
         params={"light_paths": 4096, "max_records": 1000},
     )
-    with pytest.raises(PgiError, match="exceed the configured bound"):
+    with pytest.raises(PgiError, match=r"exceed the configured bound .*method\.light_paths"):
         method.run_iteration(0)
 
 
@@ -188,6 +188,7 @@ def _light_paths(name: str, paths: int = 1 << 14, **kw):
         seed=9,
         threads=2,
         paths=paths,
+        paths_param="light_paths",
         max_records=1 << 22,
         **kw,
     )
@@ -252,6 +253,7 @@ def test_vertex_order_is_deterministic_across_threads():
         seed=9,
         threads=1,
         paths=4096,
+        paths_param="light_paths",
         max_records=1 << 22,
     )
     b.trace(0)

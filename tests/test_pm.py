@@ -141,7 +141,7 @@ def test_photon_memory_bound_is_an_error():
         threads=1,
         params={"photons": 4096, "max_records": 2000},
     )
-    with pytest.raises(PgiError, match="exceed the configured bound"):
+    with pytest.raises(PgiError, match=r"exceed the configured bound .*method\.photons "):
         method.run_iteration(0)
 
 

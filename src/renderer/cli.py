@@ -229,7 +229,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument(
         "--snapshots",
         type=_floats,
-        help="comma-separated render times (s) at which to also write OUT.t<s>.exr",
+        help="comma-separated render times (s) at which to also write snapshots "
+        "(-o out.exr: out.t1.exr, out.t2.exr, ...)",
     )
     r.add_argument("-o", "--output", required=True, help="output .exr (a .json sidecar is written)")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress output")

@@ -36,8 +36,7 @@ void LightPathTracer::check_capacity() const {
     int64_t records = int64_t(vertices_.size() + segments_.size());
     if (max_records_ > 0 && records > max_records_)
         throw std::length_error("light paths: " + std::to_string(records) +
-                                " records exceed the configured bound of " + std::to_string(max_records_) +
-                                " (lower method.light_paths or raise method.max_records)");
+                                " records exceed the configured bound of " + std::to_string(max_records_));
 }
 
 size_t LightPathTracer::begin_iteration(int64_t iteration, const RayBuffers &out) {

@@ -215,6 +215,7 @@ class LightPaths:
         seed: int,
         threads: int,
         paths: int,
+        paths_param: str,
         max_records: int,
         vertices: bool = True,
         segments: bool = True,
@@ -234,6 +235,7 @@ class LightPaths:
         self.kernel.set_emission_media(per_triangle.tolist(), per_light.tolist())
         self.rays = RayBatch(paths)
         self.paths = paths
+        self.paths_param = paths_param  # the method parameter that sets `paths`, for errors
 
     def trace(self, iteration: int) -> None:
         """Emit, then trace and scatter until every path of this iteration has ended.
@@ -247,4 +249,6 @@ class LightPaths:
                 kernel.scatter(*self.tracer.intersect(rays, active))
                 active = kernel.next_rays(*rays.buffers)
         except ValueError as e:
-            raise PgiError(str(e)) from e
+            raise PgiError(
+                f"{e} (lower method.{self.paths_param} or raise method.max_records)"
+            ) from e

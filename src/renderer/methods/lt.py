@@ -63,6 +63,7 @@ class LightTracing:
             seed=seed,
             threads=threads,
             paths=paths,
+            paths_param="light_paths",
             max_records=max_records,
             segments=False,
         )

@@ -65,6 +65,7 @@ class PhotonMapping:
             seed=seed,
             threads=threads,
             paths=photons,
+            paths_param="photons",
             max_records=max_records,
             segments=False,
         )

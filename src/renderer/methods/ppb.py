@@ -71,7 +71,7 @@ _PARAMS = {
 
 class ProgressivePhotonBeams:
     id = "ppb"
-    description = "progressive photon beams (beam x beam 1D) in media, path tracing on surfaces"
+    description = "progressive photon beams (beam x beam 1D) in media, photons on surfaces"
 
     def __init__(
         self, scene: Scene, *, seed: int, threads: int, params: dict, spp_budget: int | None = None
@@ -100,6 +100,7 @@ class ProgressivePhotonBeams:
             seed=seed,
             threads=threads,
             paths=light_paths,
+            paths_param="light_paths",
             max_records=max_records,
             vertices=surface_radius > 0,
         )
