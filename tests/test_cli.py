@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from conftest import SCENES
+from renderer.errors import PgiError
 
 PGI = [sys.executable, "-m", "renderer.cli"]
 
@@ -348,3 +349,51 @@ def test_spp_budget_is_met_exactly_by_every_method(tmp_path):
         r = pgi("render", "cbox", "--method", method, *args)
         assert r.returncode == 2 and "must divide --spp" in r.stderr, (method, r.stderr)
         assert not (tmp_path / "x.exr").exists()
+
+
+@pytest.mark.parametrize(
+    ("failure", "code", "message"),
+    [
+        (PgiError("out of photons"), 2, "pgi: error: out of photons"),
+        (KeyboardInterrupt(), 130, "pgi: interrupted"),
+    ],
+)
+def test_failure_mid_render_keeps_whole_snapshots_only(
+    tmp_path, monkeypatch, capsys, failure, code, message
+):
+    """A render that fails or is interrupted after a snapshot: the snapshot stays whole (image
+    and sidecar), no final image or sidecar is written, and the user gets one line (plus a
+    note naming what was kept), no traceback."""
+    from renderer import cli
+    from renderer.imageio import read_exr
+    from renderer.methods.pt import PathTracing
+
+    run = PathTracing.run_iteration
+
+    def failing(self, iteration):
+        if iteration >= 1:
+            raise failure
+        run(self, iteration)
+
+    monkeypatch.setattr(PathTracing, "run_iteration", failing)
+    out = tmp_path / "fog.exr"
+    args = [
+        "render",
+        "cbox-fog",
+        "--method",
+        "pt",
+        "--snapshots",
+        "0.000001,60",
+        "-q",
+        "-o",
+        str(out),
+    ]
+    assert cli.main([*args, *small("--threads", "1")]) == code
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+    snapshot = tmp_path / "fog.t1e-06.exr"
+    assert f"kept {snapshot}" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fog.t1e-06.exr", "fog.t1e-06.json"]
+    sidecar = json.loads(snapshot.with_suffix(".json").read_text())
+    assert sidecar["snapshot_budget"] == 1e-06 and sidecar["spp"] > 0
+    assert read_exr(snapshot).shape == (16, 16, 3)

@@ -11,7 +11,7 @@ import yaml
 
 from parity import mitsuba
 from renderer import _core
-from renderer.engine import camera_basis
+from renderer.engine import build_native_scene
 from renderer.errors import PgiError
 from renderer.methods.mitsuba import MitsubaVolpath
 from renderer.mitsuba_env import find_libllvm, import_mitsuba
@@ -274,11 +274,7 @@ def test_only_rgb_mitsuba_variants_are_accepted():
             import_mitsuba(variant)
 
 
-@pytest.mark.parametrize("fov_axis", ["x", "y", "diagonal", "smaller", "larger"])
-@pytest.mark.parametrize(("width", "height"), [(16, 9), (9, 16)])
-def test_camera_rays_equal_mitsubas(fov_axis, width, height):
-    """Our camera ray through any film point equals Mitsuba's perspective sensor's, for every
-    fov_axis, on wide and tall films, with an `up` not perpendicular to the view."""
+def _camera_scene(fov_axis: str, width: int, height: int):
     overrides = [
         f"film.width={width}",
         f"film.height={height}",
@@ -288,16 +284,70 @@ def test_camera_rays_equal_mitsubas(fov_axis, width, height):
         "camera.origin=[0.2, 0.9, 3.5]",
     ]
     scene = load_scene("cbox", overrides)
-    sensor = mi.load_dict(to_mitsuba_dict(scene)["sensor"])
-    forward, right, up = camera_basis(scene.camera, scene.film)
-    points = [(0, 0), (width, height), (width, 0), (0, height), (3.5, 7.25), (width / 2, 1)]
+    return scene, build_native_scene(scene).core, mi.load_dict(to_mitsuba_dict(scene)["sensor"])
+
+
+def _mitsuba_rays(sensor, width: int, height: int, points) -> tuple[np.ndarray, np.ndarray]:
+    """Origins and directions of Mitsuba's sensor rays through film points in pixels."""
+    origins, directions = [], []
     for fx, fy in points:
         sample = mi.Point2f(fx / width, fy / height)
         ray, _ = sensor.sample_ray(0.0, 0.5, sample, mi.Point2f(0.5, 0.5))
-        ours = forward + right * (2 * fx / width - 1) - up * (2 * fy / height - 1)
-        np.testing.assert_allclose(
-            np.array(ray.d).ravel(), ours / np.linalg.norm(ours), atol=1e-6, err_msg=(fx, fy)
-        )  # fmt: skip
+        origins.append(np.array(ray.o).ravel())
+        directions.append(np.array(ray.d).ravel())
+    return np.array(origins), np.array(directions)
+
+
+FOV_AXES = ["x", "y", "diagonal", "smaller", "larger"]
+FILMS = [(16, 9), (9, 16)]
+
+
+@pytest.mark.parametrize("fov_axis", FOV_AXES)
+@pytest.mark.parametrize(("width", "height"), FILMS)
+def test_camera_rays_equal_mitsubas(fov_axis, width, height):
+    """The core's camera ray through any film point equals Mitsuba's perspective sensor's,
+    for every fov_axis, on wide and tall films, with an `up` not perpendicular to the view."""
+    scene, core, sensor = _camera_scene(fov_axis, width, height)
+    points = [(0, 0), (width, height), (width, 0), (0, height), (3.5, 7.25), (width / 2, 1)]
+    _, expected = _mitsuba_rays(sensor, width, height, points)
+    ours = _core.camera_directions(core, np.array(points, dtype=np.float64))
+    np.testing.assert_allclose(ours, expected, atol=1e-6)
+
+
+def _solid_angle(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> float:
+    """Of the spherical triangle of unit vectors a, b, c (Van Oosterom & Strackee 1983)."""
+    num = abs(np.dot(a, np.cross(b, c)))
+    return 2 * np.arctan2(num, 1 + np.dot(a, b) + np.dot(b, c) + np.dot(c, a))
+
+
+@pytest.mark.parametrize("fov_axis", FOV_AXES)
+@pytest.mark.parametrize(("width", "height"), FILMS)
+def test_light_tracing_projects_onto_mitsubas_pixels(fov_axis, width, height):
+    """lt's connection to the camera (cpp/lt.h) puts a point seen through pixel (px, py) of
+    Mitsuba's sensor into that pixel, off the film outside it, and gives it the importance
+    1 / (solid angle per pixel x distance^2) there. The solid angle per pixel is measured with
+    Mitsuba's rays through the corners of a square of side 2 h pixels around the point: its
+    relative error is O(h^2) (~1e-5 here) plus float32 rounding in the rays (~1e-4)."""
+    scene, core, sensor = _camera_scene(fov_axis, width, height)
+    pixels = [(0, 0), (width - 1, 0), (0, height - 1), (width - 1, height - 1), (3, 5), (5, 3)]
+    centres = [(px + 0.5, py + 0.5) for px, py in pixels]
+    origins, directions = _mitsuba_rays(sensor, width, height, centres)
+    distance = 2.5
+    points = origins + directions * distance
+    pixel, importance = _core.camera_projections(core, points)
+    assert pixel.tolist() == [py * width + px for px, py in pixels]
+    h = 0.05
+    for k, (cx, cy) in enumerate(centres):
+        corners = [(cx - h, cy - h), (cx + h, cy - h), (cx + h, cy + h), (cx - h, cy + h)]
+        _, d = _mitsuba_rays(sensor, width, height, corners)
+        per_pixel = (_solid_angle(d[0], d[1], d[2]) + _solid_angle(d[0], d[2], d[3])) / (2 * h) ** 2
+        assert importance[k] * per_pixel * distance**2 == pytest.approx(1, rel=1e-3), (cx, cy)
+    # Just outside each edge of the film: no pixel.
+    outside = [(-0.01, height / 2), (width + 0.01, height / 2), (width / 2, -0.01),
+               (width / 2, height + 0.01)]  # fmt: skip
+    origins, directions = _mitsuba_rays(sensor, width, height, outside)
+    pixel, _ = _core.camera_projections(core, origins + directions * distance)
+    assert pixel.tolist() == [-1] * 4
 
 
 def test_phase_functions_equal_mitsubas():

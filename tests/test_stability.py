@@ -329,6 +329,54 @@ def test_shipped_scene_renders_finite(name):
     assert method.stats()["nonfinite"] == 0
 
 
+def test_film_drops_and_counts_nonfinite_samples():
+    """Every method adds samples through the same film: NaN and +-Inf are counted and
+    dropped, finite samples (negative ones included) are kept."""
+    nan, inf = float("nan"), float("inf")
+    samples = np.array(
+        [[1, 2, 3], [nan, 0, 0], [0, inf, 1], [0, 0, -inf], [0.5, -0.5, 0], [nan, nan, nan]]
+    )
+    image, dropped = _core.film_add_samples(samples)
+    assert dropped == 4
+    np.testing.assert_array_equal(
+        image.reshape(-1, 3),
+        [[1, 2, 3], [0, 0, 0], [0, 0, 0], [0, 0, 0], [0.5, -0.5, 0], [0, 0, 0]],
+    )
+
+
+class _NanMethod:
+    """A method whose image holds a NaN: what a film that let one through would give."""
+
+    def __init__(self, scene, *, seed, threads, params, spp_budget=None) -> None:
+        self.iterations = 0
+
+    def run_iteration(self, iteration: int) -> None:
+        self.iterations += 1
+
+    def image(self) -> np.ndarray:
+        image = np.ones((4, 4, 3))
+        image[1, 2, 0] = np.nan
+        return image
+
+    def stats(self) -> dict:
+        return {"iterations": self.iterations, "spp": self.iterations, "nonfinite": 0}
+
+
+def test_nonfinite_pixels_never_reach_a_file(tmp_path, monkeypatch):
+    """Behind the film, two more guards: the render refuses to write a non-finite image
+    (snapshots included) and the EXR writer refuses one; neither leaves a file."""
+    from renderer import progressive
+    from renderer.imageio import write_exr
+
+    with pytest.raises(ValueError, match="non-finite"):
+        write_exr(tmp_path / "a.exr", np.full((2, 2, 3), np.inf))
+    monkeypatch.setattr(progressive, "get_method", lambda _: _NanMethod)
+    settings = progressive.RenderSettings(method="pt", seed=0, threads=1, snapshots=(1e-9,))
+    with pytest.raises(RuntimeError, match="non-finite pixels"):
+        progressive.render(load_small("cbox", 4, 4), settings, tmp_path / "b.exr", progress=False)
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_estimate_helper_is_independent_per_iteration():
     """Guard for the tests above: ours() returns per-iteration images, not running means.
     Iteration k depends only on (seed, k), so a fresh method that runs iteration k alone

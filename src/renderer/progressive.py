@@ -155,20 +155,32 @@ def render(
     render_seconds = 0.0
     iteration = 0
     pending = list(snapshots)
-    while True:
-        spp = method.stats().get("spp", iteration)
-        if budget is not None and render_seconds >= budget:
-            break
-        if settings.spp is not None and spp >= settings.spp:
-            break
-        start = time.perf_counter()
-        method.run_iteration(iteration)
-        render_seconds += time.perf_counter() - start
-        iteration += 1
-        bar.update(render_seconds, method.stats().get("spp", iteration))
-        while pending and render_seconds >= pending[0]:
-            label = pending.pop(0)
-            write(snapshot_path(out, label), sidecar(render_seconds, label))
+    written: list[Path] = []
+    try:
+        while True:
+            spp = method.stats().get("spp", iteration)
+            if budget is not None and render_seconds >= budget:
+                break
+            if settings.spp is not None and spp >= settings.spp:
+                break
+            start = time.perf_counter()
+            method.run_iteration(iteration)
+            render_seconds += time.perf_counter() - start
+            iteration += 1
+            bar.update(render_seconds, method.stats().get("spp", iteration))
+            while pending and render_seconds >= pending[0]:
+                label = pending.pop(0)
+                write(snapshot_path(out, label), sidecar(render_seconds, label))
+                written.append(snapshot_path(out, label))
+    except BaseException:
+        # Snapshots already written are whole renders of their budgets (image and sidecar):
+        # they stay, and the user is told which; the final image is never written.
+        if written:
+            print(
+                f"note: no final image; kept {', '.join(str(p) for p in written)}",
+                file=sys.stderr,
+            )
+        raise
     bar.update(render_seconds, method.stats().get("spp", iteration), force=True)
     if pending:  # --spp was reached first
         print(

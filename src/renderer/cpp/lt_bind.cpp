@@ -79,6 +79,21 @@ nb::dict segment_arrays(const std::vector<LightSegment> &ss) {
 }  // namespace
 
 void bind_lt(nb::module_ &m) {
+    // Probe for tests: the pixel each world point projects to through connect_to_camera
+    // (-1 off the film) and the importance it receives there.
+    m.def("camera_projections",
+          [](const Scene &s, Array<double> points) {
+              size_t n = points.shape(0);
+              std::vector<int64_t> pixel(n);
+              std::vector<double> importance(n);
+              for (size_t i = 0; i < n; ++i) {
+                  const double *p = points.data() + 3 * i;
+                  CameraConnection c = connect_to_camera(s.camera, Vec3(p[0], p[1], p[2]));
+                  pixel[i] = c.valid ? c.pixel : -1;
+                  importance[i] = c.importance;
+              }
+              return std::make_tuple(to_numpy(std::move(pixel), {n}), to_numpy(std::move(importance), {n}));
+          }, "scene"_a, "points"_a);
     nb::class_<LightPathTracer>(m, "LightPathTracer")
         .def(nb::init<std::shared_ptr<const Scene>, int, int, uint64_t, int64_t, int, int64_t>(), "scene"_a,
              "max_depth"_a, "rr_depth"_a, "seed"_a, "paths_per_iteration"_a, "threads"_a, "max_records"_a)

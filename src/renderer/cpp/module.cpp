@@ -168,6 +168,30 @@ static void add_scene(nb::module_ &m) {
 }
 
 static void add_sampling_probes(nb::module_ &m) {
+    // The camera ray direction through each film point (fx, fy) in pixels, (0, 0) top-left.
+    m.def("camera_directions",
+          [](const Scene &s, Array<double> film_points) {
+              size_t n = film_points.shape(0);
+              std::vector<double> out(3 * n);
+              for (size_t i = 0; i < n; ++i) {
+                  Vec3 d = s.camera.direction(film_points.data()[2 * i], film_points.data()[2 * i + 1]);
+                  for (int a = 0; a < 3; ++a) out[3 * i + a] = d[a];
+              }
+              return to_numpy(std::move(out), {n, 3});
+          }, "scene"_a, "film_points"_a);
+    // Samples (n, 3) added to an n x 1 film as every method adds them: the image (one
+    // sample per pixel) and the count of non-finite samples the film dropped.
+    m.def("film_add_samples",
+          [](Array<double> samples) {
+              size_t n = samples.shape(0);
+              Film film(int(n), 1);
+              for (size_t i = 0; i < n; ++i) {
+                  const double *v = samples.data() + 3 * i;
+                  film.add(int64_t(i), RGB(v[0], v[1], v[2]));
+              }
+              film.samples_per_pixel = 1;
+              return std::make_tuple(film_image(film), film.nonfinite);
+          }, "samples"_a);
     // Each takes uniform numbers and returns what the renderer would sample.
     m.def("sample_bsdf",
           [](int type, V3 reflectance, double ior, V3 normal, V3 wo, Array<double> u) {
