@@ -53,6 +53,7 @@ def main(argv: list[str]) -> int:
     ap = argparse.ArgumentParser(prog="fake-pgi")
     sub = ap.add_subparsers(dest="cmd", required=True)
     sub.add_parser("methods")
+    sub.add_parser("fingerprint")
     r = sub.add_parser("render")
     r.add_argument("scene")
     r.add_argument("--method", required=True)
@@ -74,6 +75,11 @@ def main(argv: list[str]) -> int:
     if a.cmd == "methods":
         for m in methods:
             print(f"{m}    fake method {m}")
+        return 0
+    if a.cmd == "fingerprint":  # the code "changes" when the test says so
+        code = {"render": os.environ.get("FAKE_PGI_RENDER_CODE", "r0"),
+                "reference": os.environ.get("FAKE_PGI_REFERENCE_CODE", "f0")}  # fmt: skip
+        print(json.dumps(code))
         return 0
     scene = scene_name(a.scene)
     if not Path(a.scene).exists():

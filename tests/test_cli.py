@@ -397,3 +397,20 @@ def test_failure_mid_render_keeps_whole_snapshots_only(
     sidecar = json.loads(snapshot.with_suffix(".json").read_text())
     assert sidecar["snapshot_budget"] == 1e-06 and sidecar["spp"] > 0
     assert read_exr(snapshot).shape == (16, 16, 3)
+
+
+def test_fingerprints_cover_the_code_each_output_runs():
+    """Render code: every renderer source, C++ included. Reference code: the scene loader
+    and the Mitsuba export, not the methods or the C++ core. Both are content hashes."""
+    from renderer import fingerprint
+
+    render = {p.relative_to(fingerprint.PACKAGE).as_posix() for p in fingerprint.render_sources()}
+    assert {"methods/pt.py", "cpp/pt.cpp", "cpp/medium.h", "scene/mitsuba_export.py"} <= render
+    reference = {
+        p.relative_to(fingerprint.PACKAGE).as_posix() for p in fingerprint.reference_sources()
+    }
+    assert {"reference.py", "scene/loader.py", "scene/mitsuba_export.py", "volumes.py"} <= reference
+    assert not any(p.startswith(("methods/", "cpp/")) for p in reference)
+    r = pgi("fingerprint")
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout) == fingerprint.fingerprints()

@@ -90,7 +90,9 @@ def _fake_pgi(tmp_path: Path) -> str:
     """A `pgi` whose `methods` lists pt, lt and mitsuba, and announces bdpt and vrl."""
     script = tmp_path / "fake-pgi"
     script.write_text(
-        "#!/bin/sh\nprintf 'pt  path tracing\\nlt  light tracing\\nmitsuba  x\\n"
+        "#!/bin/sh\n"
+        'if [ "$1" = fingerprint ]; then echo \'{"render": "r", "reference": "f"}\'; exit 0; fi\n'
+        "printf 'pt  path tracing\\nlt  light tracing\\nmitsuba  x\\n"
         "# not yet implemented: bdpt, vrl\\n'\n"
     )
     script.chmod(0o755)
@@ -208,3 +210,18 @@ def test_plan_loads_each_scene_with_each_variant() -> None:
     with pytest.raises(PlanError, match=r"variants: 'mi-delta': --set integrator.estimator="):
         make_plan({**GOOD, "variants": unread}, ROOT)
     assert make_plan({**GOOD, "variants": DELTA}, ROOT).methods == ("pt", "pt-delta")
+
+
+def test_plan_records_the_code_fingerprints_and_refuses_a_pgi_without_them(tmp_path: Path) -> None:
+    cfg = {**GOOD, "scenes_dir": str(_scenes(tmp_path)), "pgi": _fake_pgi(tmp_path)}
+    plan = make_plan(cfg, tmp_path, check_scenes=False)
+    assert plan.code == {"render": "r", "reference": "f"}
+    old = tmp_path / "old-pgi"  # a pgi from before `fingerprint`: argparse refuses it
+    old.write_text(
+        "#!/bin/sh\n"
+        'if [ "$1" = methods ]; then echo "pt  path tracing"; exit 0; fi\n'
+        "echo 'pgi: error: invalid choice' >&2; exit 2\n"
+    )
+    old.chmod(0o755)
+    with pytest.raises(PlanError, match=r"fingerprint` failed \(exit 2\).*invalid choice"):
+        make_plan({**cfg, "pgi": str(old)}, tmp_path, check_methods=True, check_scenes=False)

@@ -278,3 +278,24 @@ def test_lights_emit_into_their_medium(name, expected):
     first = sum(len(s.faces) for s in scene.shapes[:light])
     want = -1 if expected is None else list(scene.media).index(expected)
     assert np.all(per_triangle[first : first + len(scene.shapes[light].faces)] == want)
+
+
+def test_sun_shining_into_an_unbounded_grid_starts_in_it():
+    """A smoke grid no shape bounds, the camera in it, lit by the sun: the sun's light paths
+    start in the smoke (outside its box, where the density is zero), as pt's shadow rays
+    towards the sun travel in it; with the camera outside every medium they start in vacuum."""
+    from renderer.engine import build_native_scene
+    from renderer.methods.lightpath import emission_media
+    from renderer.tracer import EmbreeTracer
+
+    open_grid = (
+        "camera.medium=smoke",
+        "shapes=[{name: floor, type: rectangle, material: floor, "
+        "transform: [{scale: 0.98}, {rotate: {axis: [1, 0, 0], angle: -90}}]}]",
+        "lights=[{type: directional, direction: [0.3, -1, -0.2], irradiance: 2}]",
+    )
+    for extra, want in ((open_grid, 0), (open_grid[1:], -1)):
+        scene = load_small("smoke", 8, 8, extra)
+        native = build_native_scene(scene)
+        _, per_light = emission_media(native, EmbreeTracer(native.triangles, 1), scene)
+        assert per_light.tolist() == [want], extra

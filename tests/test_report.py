@@ -312,9 +312,10 @@ def test_browser_check_catches_errors(tmp_path: Path) -> None:
     assert "missing" in r.broken_images
 
 
-def test_methods_within_two_standard_errors_of_the_best_are_tied() -> None:
-    """pt 1.00 and mitsuba 1.05 (std 0.1 over 2 seeds: the difference's standard error is 0.1)
-    tie; lt at 1.5 does not; with one seed no spread is known and nothing ties."""
+def test_methods_welchs_test_cannot_separate_from_the_best_are_tied() -> None:
+    """pt 1.00 and mitsuba 1.05 (std 0.1 over 2 seeds: the difference's standard error is 0.1,
+    Welch's 2 degrees of freedom put the 5 % limit at 4.30 of it) tie; lt at 1.5 does not;
+    with one seed no spread is known and nothing ties."""
     rows = [
         ("pt", 1.00, 0.1, 2),
         ("mitsuba", 1.05, 0.1, 2),
@@ -340,4 +341,7 @@ def test_methods_within_two_standard_errors_of_the_best_are_tied() -> None:
     assert best.method.tolist() == ["pt"] and best.tied_with.tolist() == ["mitsuba"]
     marked = {r["method"] for r in T.overview_cells(summary, "relmse") if r["cells"][1.0]["best"]}
     assert marked == {"pt", "mitsuba"}
-    assert not T.tied(1.0, 0.1, 2, 1.5, 0.1, 2) and T.tied(1.0, 0.1, 2, 1.19, 0.1, 2)
+    assert not T.tied(1.0, 0.1, 2, 1.44, 0.1, 2) and T.tied(1.0, 0.1, 2, 1.42, 0.1, 2)
+    # More seeds, a smaller limit: 8 a side give 14 degrees of freedom (2.14 standard errors).
+    assert not T.tied(1.0, 0.2, 8, 1.22, 0.2, 8) and T.tied(1.0, 0.2, 8, 1.2, 0.2, 8)
+    assert T.tied(1.0, 0.0, 2, 1.0, 0.0, 2) and not T.tied(1.0, 0.0, 2, 1.001, 0.0, 2)

@@ -139,6 +139,41 @@ def test_files_a_scene_reads_are_its_inputs(study: Path) -> None:
     assert "Nothing to be done" in dry.stdout + dry.stderr
 
 
+def test_renderer_code_changes_rerun_what_they_affect(study: Path) -> None:
+    """`pgi fingerprint` changes: new render code reruns every render (2 methods x 2 seeds)
+    and no reference; new reference code reruns the references (2 halves) and no render."""
+    env = {"FAKE_PGI_METHODS": "pt,lt,sppm"}
+    cases = [({"FAKE_PGI_RENDER_CODE": "r1"}, 4, 0), ({"FAKE_PGI_REFERENCE_CODE": "f1"}, 0, 2)]
+    for changed, renders, halves in cases:
+        c = job_counts(
+            snakemake(study, "--configfile", "cfg.yaml", "-n", env={**env, **changed}).stdout
+        )
+        assert c.get("render", 0) == renders and c.get("reference_half", 0) == halves, (changed, c)
+
+
+def test_a_timed_render_runs_alone_on_more_cores(study: Path) -> None:
+    """Given more cores than the config's threads, a timed render claims them all (nothing runs
+    beside it), references keep their own count, and pgi still gets the config's threads."""
+    env = {"FAKE_PGI_METHODS": "pt,lt,sppm"}
+    args = ["--configfile", "cfg.yaml", "-n", "--forceall", "--printshellcmds", "--cores", "6"]
+    out = snakemake(study, *args, env=env).stdout
+    threads = {
+        rule: set(re.findall(r"threads: (\d+)", body))
+        for rule, body in re.findall(r"rule (\w+):\n(.*?)(?:\n\n|\Z)", out, re.S)
+        if rule in ("render", "reference_half")
+    }
+    assert threads == {"render": {"6"}, "reference_half": {"2"}}, threads
+    assert "--threads 2 " in out and "--threads 6" not in out
+
+
+def test_more_threads_than_cores_stops_before_any_job(study: Path) -> None:
+    too_many = (os.cpu_count() or 1) + 1
+    write_config(study / "greedy.yaml", study / "scenes", threads=too_many)
+    p = snakemake(study, "--configfile", "greedy.yaml", "-n", check=False)
+    assert p.returncode != 0
+    assert f"threads: {too_many} is more than this machine's" in p.stdout + p.stderr
+
+
 def test_analysis_code_is_an_input_of_the_analysis(study: Path) -> None:
     """Comparisons, tables and report pages list the comparison code among their inputs, so
     editing it reruns them (renders do not depend on it)."""

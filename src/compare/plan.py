@@ -8,6 +8,7 @@ A *variant* is a method run with settings of its own under a label of its own (`
 
 from __future__ import annotations
 
+import json
 import math
 import shlex
 import shutil
@@ -73,6 +74,9 @@ class Plan:
     title: str = "pgi comparison"
     viewer_max_size: int = 512
     timed_render_slots: int = 1
+    # `pgi fingerprint`: digests of the code behind renders and references (empty when the
+    # plan was made without asking pgi)
+    code: dict[str, str] = field(default_factory=dict)
 
     @property
     def budget_tags(self) -> list[str]:
@@ -147,6 +151,26 @@ def available_methods(pgi: tuple[str, ...]) -> tuple[list[str], list[str]]:
         if tok and not tok[0].startswith("#"):
             ids.append(tok[0])
     return ids, planned
+
+
+def code_fingerprints(pgi: tuple[str, ...]) -> dict[str, str]:
+    """`pgi fingerprint`: {"render": digest, "reference": digest}."""
+    try:
+        proc = subprocess.run(
+            [*pgi, "fingerprint"], capture_output=True, text=True, timeout=120, check=False
+        )
+    except OSError as e:
+        raise PlanError(f"cannot run `{' '.join(pgi)} fingerprint`: {e}") from e
+    try:
+        code = json.loads(proc.stdout) if proc.returncode == 0 else None
+    except json.JSONDecodeError:
+        code = None
+    if not isinstance(code, dict) or not {"render", "reference"} <= set(code):
+        raise PlanError(
+            f"`{' '.join(pgi)} fingerprint` failed (exit {proc.returncode}): expected JSON "
+            f"with render and reference digests, got {(proc.stderr or proc.stdout).strip()!r}"
+        )
+    return {"render": str(code["render"]), "reference": str(code["reference"])}
 
 
 def check_scene(spec: SceneSpec, extra: tuple[str, ...] = (), where: str = "scenes") -> None:
@@ -314,4 +338,5 @@ def make_plan(
         title=str(report.get("title", "pgi comparison")),
         viewer_max_size=int(report.get("viewer_max_size", 512)),
         timed_render_slots=int(config.get("timed_render_slots", 1)),
+        code=code_fingerprints(pgi) if check_methods else {},
     )

@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from scipy import stats
 
 from .convergence import bounded, fit_slope, fit_slope_above_floor, time_to_error
 from .metrics import METRICS
@@ -103,20 +104,23 @@ def overshoot(render_seconds: float, budget: float) -> bool:
     return bool(render_seconds > OVERSHOOT * budget)
 
 
-# Two cells whose means differ by less than this many standard errors of the difference
-# (seed-to-seed spread / sqrt(seeds), both cells' combined) are a tie: seeds cannot tell them
-# apart.
-TIE_STANDARD_ERRORS = 2.0
+# Two cells are a tie when Welch's t-test at this two-sided level cannot tell their means
+# apart: the spreads come from a few seeds, so the critical value is Student's (4.3 for two
+# seeds a side, not the normal 1.96).
+TIE_LEVEL = 0.05
 
 
 def tied(a_mean: float, a_std: float, a_n: int, b_mean: float, b_std: float, b_n: int) -> bool:
-    """Whether two cells' means lie within TIE_STANDARD_ERRORS of each other (never with
-    fewer than two seeds on either side: no spread is known then)."""
+    """Whether Welch's t-test (Welch-Satterthwaite degrees of freedom) cannot reject equal
+    means at TIE_LEVEL; never with fewer than two seeds on either side (no spread is known)."""
     if min(a_n, b_n) < 2 or not (math.isfinite(a_std) and math.isfinite(b_std)):
         return False
-    return abs(a_mean - b_mean) < TIE_STANDARD_ERRORS * math.hypot(
-        a_std / math.sqrt(a_n), b_std / math.sqrt(b_n)
-    )
+    va, vb = a_std**2 / a_n, b_std**2 / b_n
+    if va + vb == 0:
+        return a_mean == b_mean
+    dof = (va + vb) ** 2 / (va**2 / (a_n - 1) + vb**2 / (b_n - 1))
+    critical = float(stats.t.ppf(1 - TIE_LEVEL / 2, dof))
+    return abs(a_mean - b_mean) < critical * math.sqrt(va + vb)
 
 
 def best_methods(summary: pd.DataFrame, metric: str) -> pd.DataFrame:
@@ -306,9 +310,10 @@ def overview_markdown(summary: pd.DataFrame, metric: str) -> str:
     head = ["scene", "method", *[budget_label(b) for b in budgets]]
     lines = [
         f"{METRIC_LABELS.get(metric, metric)}, mean ± std over seeds; **bold** = best per "
-        f"scene and budget, and any method within {TIE_STANDARD_ERRORS:g} standard errors of "
-        "it (a tie); ⚠ = reference error not well below this error; (at … s) = the "
-        f"snapshot came more than {OVERSHOOT:g}x after its budget, at that mean render time",
+        f"scene and budget, and any method Welch's t-test at {TIE_LEVEL:g} cannot tell from "
+        "it with these seeds (a tie); ⚠ = reference error not well below this error; "
+        f"(at … s) = the snapshot came more than {OVERSHOOT:g}x after its budget, at that "
+        "mean render time",
         "",
         "| " + " | ".join(head) + " |",
         "|" + "|".join(["---"] * len(head)) + "|",

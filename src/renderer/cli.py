@@ -176,6 +176,13 @@ def cmd_methods(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_fingerprint(args: argparse.Namespace) -> int:
+    from .fingerprint import fingerprints
+
+    print(json.dumps(fingerprints()))
+    return 0
+
+
 def cmd_validate(args: argparse.Namespace) -> int:
     from .engine import build_native_scene
     from .scene import load_scene
@@ -255,6 +262,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     m = sub.add_parser("methods", help="list the available methods")
     m.set_defaults(func=cmd_methods)
+
+    f = sub.add_parser(
+        "fingerprint",
+        help="print, as JSON, digests of the code behind renders and behind references "
+        "(the workflow reruns what a change of them affects)",
+    )
+    f.set_defaults(func=cmd_fingerprint)
 
     v = sub.add_parser("validate", help="check a scene file")
     scene_arg(v)

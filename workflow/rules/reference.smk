@@ -13,6 +13,9 @@ rule reference_half:
         sets=set_args,
         spp=lambda w: PLAN.scenes[w.scene].reference_spp,
         seed=lambda w: PLAN.ref_seed + int(w.half),
+        # `pgi fingerprint`: a change of the code `pgi reference` runs (scene loading, the
+        # Mitsuba export) or of Mitsuba reruns the references; other renderer code does not
+        code=PLAN.code.get("reference", ""),
     threads: PLAN.ref_threads
     log:
         f"{R}/logs/reference/{{scene}}/half{{half}}.log",

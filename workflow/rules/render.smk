@@ -1,7 +1,21 @@
 # Timed renders: one run per scene x method x seed writes a snapshot at every time budget.
 # Budgets come from the renderer's own clock (sidecar render_seconds); `benchmark:` records
-# wall time and memory. Every run declares the same threads and holds the `timed_render`
-# resource, so timed renders never share the machine with each other.
+# wall time and memory. Every run holds the `timed_render` resource, so timed renders never
+# share the machine with each other, and locally it claims every core Snakemake may use, so
+# no reference or comparison runs beside it either (pgi still gets the config's threads).
+
+
+def render_cores(wildcards):
+    if not workflow.local_exec:
+        return PLAN.threads
+    # `pgi render` refuses more threads than the machine has: say so before any job runs.
+    if PLAN.threads > (os.cpu_count() or 1):
+        raise WorkflowError(
+            f"config: threads: {PLAN.threads} is more than this machine's "
+            f"{os.cpu_count()} cores; every render would fail (use --config threads=N)"
+        )
+    return max(PLAN.threads, workflow.cores)
+
 
 
 rule render:
@@ -22,7 +36,9 @@ rule render:
         # {threads}, and compare refuses runs with other counts); as a param, a change of it
         # reruns the render (Snakemake ignores changes of `threads:`).
         nthreads=PLAN.threads,
-    threads: PLAN.threads
+        # `pgi fingerprint`: a change of the renderer's code reruns the renders
+        code=PLAN.code.get("render", ""),
+    threads: render_cores
     resources:
         timed_render=1,
     log:

@@ -6,7 +6,6 @@
 
 namespace pgi {
 
-// Null crossings allowed per path before we call it trapped.
 // Stream tag so that light paths never share random numbers with camera paths.
 constexpr uint64_t kLightStreamTag = 0x4c69676874506174ull;
 

@@ -89,7 +89,7 @@ struct Medium {
 // Counts of work done by media estimators, summed per thread.
 struct MediumStats {
     uint64_t density_lookups = 0;
-    uint64_t segments = 0;  // ray segments tracked through grid media (both estimators)
+    uint64_t segments = 0;  // ray segments tracked through grid media (every estimator)
     MediumStats &operator+=(const MediumStats &o) {
         density_lookups += o.density_lookups;
         segments += o.segments;

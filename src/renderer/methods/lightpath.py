@@ -103,9 +103,11 @@ def emission_media(native: NativeScene, tracer: EmbreeTracer, scene: Scene, seed
     Area lights come first in the core (one per emitting shape, in shape order), then
     point, spot and directional lights in the scene's order. Emitting triangles are
     probed from their centroid on the front side; point and spot lights from their
-    position; directional lights start outside the scene (vacuum). When the camera sits in
-    a medium, lights it reaches without crossing a shape that names a medium share it
-    (a fog-filled room has no shape naming its fog).
+    position; directional lights start on a disk just outside the scene's bounding sphere
+    (vacuum). When the camera sits in a medium, lights it reaches without crossing a shape
+    that names a medium share it (a fog-filled room has no shape naming its fog; a smoke
+    grid with no shape around it lets the sun's paths start in the smoke, outside its box),
+    a directional light judged from its disk's centre.
     """
     rng = np.random.default_rng(seed)
     tri = native.triangles
@@ -150,9 +152,21 @@ def emission_media(native: NativeScene, tracer: EmbreeTracer, scene: Scene, seed
             same = _reaches_camera_freely(native, tracer, scene, start)
             per_triangle[emitting[same]] = camera_medium
         for i, pos in enumerate(point_positions):
-            if pos is not None and _reaches_camera_freely(native, tracer, scene, pos[None])[0]:
+            if pos is None:  # directional: where its paths start (cpp/lightpath.cpp)
+                pos = _sun_disk_centre(native, scene.lights[i].direction)
+            if _reaches_camera_freely(native, tracer, scene, pos[None])[0]:
                 per_light[lights_area + i] = camera_medium
     return per_triangle, per_light
+
+
+def _sun_disk_centre(native: NativeScene, direction: np.ndarray) -> np.ndarray:
+    """Centre of the disk a directional light's paths start on: the scene's bounding-box
+    centre, 1.01 bounding radii against the direction of travel (as Scene::finalize and
+    the light-path kernel place it)."""
+    points = native.triangles.reshape(-1, 3).astype(np.float64)
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    radius = max(1e-30, float(np.linalg.norm(hi - lo)) * 0.5)
+    return (lo + hi) * 0.5 - np.asarray(direction, np.float64) * radius * 1.01
 
 
 def _reaches_camera_freely(
