@@ -45,6 +45,9 @@ SCENE_FILE = "scene.yaml"
 MAX_LIGHT = 1e30  # emitted radiance, intensity, irradiance
 MAX_COORDINATE = 1e15  # |vertex coordinate| (float32 spacing there is ~1e8: far beyond any scene)
 MAX_EXTINCTION = 1e30  # sigma_t x scale (x the densest voxel): Mitsuba multiplies in float32
+# A voxel value: float32 with headroom (the majorant grid widens its bounds by a relative
+# margin; at the float32 maximum that overflowed to infinity and tracking never advanced).
+MAX_DENSITY = 1e30
 MAX_FILM_SIDE = 16384
 REPO_ROOT = Path(__file__).resolve().parents[3]  # src/renderer/scene/loader.py -> repo
 
@@ -626,8 +629,12 @@ def _load_density(
         )
     if not np.all(np.isfinite(a)):
         val.fail(p, f"{source}: density has non-finite values")
-    if np.abs(a).max() > np.finfo(np.float32).max:
-        val.fail(p, f"{source}: density exceeds the float32 range the renderers use")
+    if np.abs(a).max() > MAX_DENSITY:
+        val.fail(
+            p,
+            f"{source}: density values must be <= {MAX_DENSITY:g} (float32, with headroom), "
+            f"got {np.abs(a).max():g}",
+        )
     if a.min() < 0:
         idx = tuple(int(i) for i in np.unravel_index(np.argmin(a), a.shape))
         val.fail(p, f"{source}: density must be >= 0, got {a.min():g} at [x, y, z] = {list(idx)}")
