@@ -104,23 +104,28 @@ def overshoot(render_seconds: float, budget: float) -> bool:
     return bool(render_seconds > OVERSHOOT * budget)
 
 
-# Two cells are a tie when Welch's t-test at this two-sided level cannot tell their means
-# apart: the spreads come from a few seeds, so the critical value is Student's (4.3 for two
-# seeds a side, not the normal 1.96).
+# Two cells are a tie when Welch's t-test at this two-sided level cannot tell their errors
+# apart. Errors are compared as logarithms (their ratio is what matters, and methods whose
+# errors differ 40x must not tie because one of them varies between seeds); the spreads come
+# from a few seeds, so the critical value is Student's (4.3 for two seeds a side with equal
+# spreads, up to 12.7 when one spread dominates), not the normal 1.96.
 TIE_LEVEL = 0.05
 
 
 def tied(a_mean: float, a_std: float, a_n: int, b_mean: float, b_std: float, b_n: int) -> bool:
-    """Whether Welch's t-test (Welch-Satterthwaite degrees of freedom) cannot reject equal
-    means at TIE_LEVEL; never with fewer than two seeds on either side (no spread is known)."""
+    """Whether Welch's t-test on log errors (Welch-Satterthwaite degrees of freedom; the
+    spread of a log as std / mean) cannot reject equal errors at TIE_LEVEL. Never with fewer
+    than two seeds on either side (no spread is known) or a non-positive mean."""
     if min(a_n, b_n) < 2 or not (math.isfinite(a_std) and math.isfinite(b_std)):
         return False
-    va, vb = a_std**2 / a_n, b_std**2 / b_n
+    if not (a_mean > 0 and b_mean > 0):
+        return a_mean == b_mean
+    va, vb = (a_std / a_mean) ** 2 / a_n, (b_std / b_mean) ** 2 / b_n
     if va + vb == 0:
         return a_mean == b_mean
     dof = (va + vb) ** 2 / (va**2 / (a_n - 1) + vb**2 / (b_n - 1))
     critical = float(stats.t.ppf(1 - TIE_LEVEL / 2, dof))
-    return abs(a_mean - b_mean) < critical * math.sqrt(va + vb)
+    return abs(math.log(a_mean / b_mean)) < critical * math.sqrt(va + vb)
 
 
 def best_methods(summary: pd.DataFrame, metric: str) -> pd.DataFrame:
@@ -310,8 +315,9 @@ def overview_markdown(summary: pd.DataFrame, metric: str) -> str:
     head = ["scene", "method", *[budget_label(b) for b in budgets]]
     lines = [
         f"{METRIC_LABELS.get(metric, metric)}, mean ± std over seeds; **bold** = best per "
-        f"scene and budget, and any method Welch's t-test at {TIE_LEVEL:g} cannot tell from "
-        "it with these seeds (a tie); ⚠ = reference error not well below this error; "
+        f"scene and budget, and any method Welch's t-test on log errors at {TIE_LEVEL:g} "
+        "cannot tell from it with these seeds (a tie); ⚠ = reference error not well below "
+        "this error; "
         f"(at … s) = the snapshot came more than {OVERSHOOT:g}x after its budget, at that "
         "mean render time",
         "",

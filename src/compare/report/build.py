@@ -90,7 +90,8 @@ def _legend(metric: str, factor: float) -> str:
     return (
         f'<p class="note">{e(_metric_label(metric))}, mean ± standard deviation over seeds. '
         "<b>Bold green</b>: lowest mean error for that scene and budget, and any method "
-        f"that Welch's t-test at {T.TIE_LEVEL:g} cannot tell from it with these seeds (a tie). "
+        f"that Welch's t-test on log errors at {T.TIE_LEVEL:g} cannot tell from it with these "
+        "seeds (a tie). "
         f'<span class="flag">⚠</span>: for at least one seed, the reference\'s own relMSE is '
         f"not {factor:g}x below that run's relMSE, so the reference may limit what the cell "
         "can show. "
