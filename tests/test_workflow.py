@@ -122,18 +122,32 @@ def test_rerun_does_nothing(study: Path) -> None:
 
 
 def test_files_a_scene_reads_are_its_inputs(study: Path) -> None:
-    """Editing an included file, or an asset it names, reruns that scene's renders and
-    references (here alpha: 2 methods x 2 seeds, 2 halves); nothing else."""
+    """Editing what an included file says, or an asset it names, reruns that scene's renders
+    and references (here alpha: 2 methods x 2 seeds, 2 halves); a comment or a new
+    description reruns only the scene's report page; rewriting a file unchanged (a newer
+    time, the same content) reruns nothing."""
     env = {"FAKE_PGI_METHODS": "pt,lt,sppm"}
-    for name in ("box.yaml", "box.ply"):
-        f = study / "scenes" / "shared" / name
-        before = f.stat()
+    edits = [
+        ("shared/box.yaml", "integrator: {max_depth: 3}\n", 4, 2, 1),
+        ("shared/box.ply", "# edited\n", 4, 2, 1),
+        ("shared/box.yaml", "# a comment\n", 0, 0, 1),
+        ("alpha/scene.yaml", "description: a new text for the report\n", 0, 0, 1),
+        ("alpha/scene.yaml", "", 0, 0, 0),
+    ]
+    for name, added, renders, halves, pages in edits:
+        f = study / "scenes" / name
+        before, text = f.stat(), f.read_text()
         try:
-            f.write_text(f.read_text() + "# edited\n")
+            f.write_text(text + added)
             c = job_counts(snakemake(study, "--configfile", "cfg.yaml", "-n", env=env).stdout)
-            assert c.get("render") == 4 and c.get("reference_half") == 2, (name, c)
+            assert c.get("render", 0) == renders and c.get("reference_half", 0) == halves, (
+                name,
+                added,
+                c,
+            )
+            assert c.get("report_scene", 0) == pages, (name, added, c)
         finally:
-            f.write_text(f.read_text().removesuffix("# edited\n"))
+            f.write_text(text)
             os.utime(f, ns=(before.st_atime_ns, before.st_mtime_ns))
     dry = snakemake(study, "--configfile", "cfg.yaml", "-n", env=env)
     assert "Nothing to be done" in dry.stdout + dry.stderr

@@ -4,7 +4,7 @@ import functools
 import shlex
 from pathlib import Path
 
-from renderer.scene.loader import scene_sources
+from renderer.scene.loader import scene_content_digest, scene_sources
 
 
 def _relative(path):
@@ -28,9 +28,20 @@ def _scene_sources(scene):
 
 
 def scene_files(wildcards):
-    """The scene file, its includes and its assets: editing any of them reruns the scene.
-    Read once per scene (every job of the scene asks)."""
+    """The scene file, its includes and its assets (the report pages read them)."""
     return list(_scene_sources(wildcards.scene))
+
+
+@functools.cache
+def _scene_digest(scene):
+    return scene_content_digest(PLAN.scenes[scene].path)
+
+
+def scene_digest(wildcards):
+    """What the scene renders (renderer.scene.loader.scene_content_digest): renders and
+    references record it as a param, so an edit that changes it reruns them, and a comment
+    or a new description does not. Computed once per scene."""
+    return _scene_digest(wildcards.scene)
 
 
 # The analysis code: editing it reruns comparisons, tables and the report (cheap steps);

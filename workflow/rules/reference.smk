@@ -3,8 +3,6 @@
 
 
 rule reference_half:
-    input:
-        scene=scene_files,
     output:
         exr=f"{R}/reference/{{scene}}/half{{half}}.exr",
         json=f"{R}/reference/{{scene}}/half{{half}}.json",
@@ -16,6 +14,7 @@ rule reference_half:
         # `pgi fingerprint`: a change of the code `pgi reference` runs (scene loading, the
         # Mitsuba export) or of Mitsuba reruns the references; other renderer code does not
         code=PLAN.code.get("reference", ""),
+        scene_digest=scene_digest,
     threads: PLAN.ref_threads
     log:
         f"{R}/logs/reference/{{scene}}/half{{half}}.log",

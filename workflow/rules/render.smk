@@ -19,8 +19,6 @@ def render_cores(wildcards):
 
 
 rule render:
-    input:
-        scene=scene_files,
     output:
         snapshots=[f"{R}/render/{{scene}}/{{method}}/s{{seed}}/run.t{t}.exr" for t in PLAN.budget_tags],
         sidecars=[f"{R}/render/{{scene}}/{{method}}/s{{seed}}/run.t{t}.json" for t in PLAN.budget_tags],
@@ -38,6 +36,8 @@ rule render:
         nthreads=PLAN.threads,
         # `pgi fingerprint`: a change of the renderer's code reruns the renders
         code=PLAN.code.get("render", ""),
+        # the scene's content (its files as parsed, less the report-only keys, and assets)
+        scene_digest=scene_digest,
     threads: render_cores
     resources:
         timed_render=1,

@@ -11,6 +11,9 @@ overrides, then validate and resolve into model objects.
 
 from __future__ import annotations
 
+import hashlib
+import json
+import os
 import re
 from collections.abc import Iterable, Sequence
 from pathlib import Path
@@ -879,6 +882,32 @@ def scene_sources(path: str | Path) -> list[Path]:
             continue
         found += [a for a in _named_assets(part, file.parent) if a.is_file() and a not in found]
     return found
+
+
+# Keys only the report reads: editing them changes no image.
+REPORT_ONLY_KEYS = ("description", "stresses", "expected_winners")
+
+
+def scene_content_digest(path: str | Path) -> str:
+    """A digest of what a scene renders: its YAML files as parsed, without the report-only
+    keys (so comments, layout and a scene's description do not count), and the bytes of
+    the assets they name. The workflow reruns a scene's renders and references when it
+    changes."""
+    h = hashlib.sha256()
+    main = find_scene_file(path).resolve()
+    for file in scene_sources(main):
+        h.update(os.path.relpath(file, main.parent).encode() + b"\0")  # stable if moved
+        data = file.read_bytes()
+        if file.suffix in (".yaml", ".yml"):
+            try:
+                doc = _read_yaml(file)
+            except PgiError:
+                doc = None
+            if doc is not None:
+                kept = {k: v for k, v in doc.items() if k not in REPORT_ONLY_KEYS}
+                data = json.dumps(kept, sort_keys=True, default=str).encode()
+        h.update(data + b"\0")
+    return h.hexdigest()[:16]
 
 
 def _named_assets(node: Any, here: Path) -> Iterable[Path]:
