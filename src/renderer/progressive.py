@@ -170,8 +170,9 @@ def render(
             bar.update(render_seconds, method.stats().get("spp", iteration))
             while pending and render_seconds >= pending[0]:
                 label = pending.pop(0)
-                write(snapshot_path(out, label), sidecar(render_seconds, label))
-                written.append(snapshot_path(out, label))
+                path = snapshot_path(out, label)
+                write(path, sidecar(render_seconds, label))
+                written.append(path)
     except BaseException:
         # Snapshots already written are whole renders of their budgets (image and sidecar):
         # they stay, and the user is told which; the final image is never written.

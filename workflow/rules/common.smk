@@ -4,6 +4,8 @@ import functools
 import shlex
 from pathlib import Path
 
+from renderer.errors import PgiError
+from renderer.progressive import available_cores, check_threads
 from renderer.scene.loader import scene_content_digest, scene_sources
 
 

@@ -8,12 +8,14 @@
 def render_cores(wildcards):
     if not workflow.local_exec:
         return PLAN.threads
-    # `pgi render` refuses more threads than the machine has: say so before any job runs.
-    if PLAN.threads > (os.cpu_count() or 1):
+    # `pgi render` would refuse the count (its own check): say so before any job runs.
+    try:
+        check_threads(PLAN.threads)
+    except PgiError:
         raise WorkflowError(
             f"config: threads: {PLAN.threads} is more than this machine's "
-            f"{os.cpu_count()} cores; every render would fail (use --config threads=N)"
-        )
+            f"{available_cores()} cores; every render would fail (use --config threads=N)"
+        ) from None
     return max(PLAN.threads, workflow.cores)
 
 

@@ -127,6 +127,8 @@ static void add_scene(nb::module_ &m) {
         .def_prop_ro("triangle_count", [](const Scene &s) { return s.triangles.size(); })
         .def_prop_ro("ray_epsilon", [](const Scene &s) { return s.ray_epsilon; })
         .def_prop_ro("scene_radius", [](const Scene &s) { return s.scene_radius; })
+        .def_prop_ro("scene_center",
+                     [](const Scene &s) { return std::array<double, 3>{s.scene_center.x, s.scene_center.y, s.scene_center.z}; })
         // Probes for tests: estimators evaluated in isolation.
         .def("transmittance",
              [](const Scene &s, int medium, V3 origin, V3 direction, double tmax, uint64_t seed, int64_t n) {

@@ -152,7 +152,7 @@ def emission_media(native: NativeScene, tracer: EmbreeTracer, scene: Scene, seed
             same = _reaches_camera_freely(native, tracer, scene, start)
             per_triangle[emitting[same]] = camera_medium
         for i, pos in enumerate(point_positions):
-            if pos is None:  # directional: where its paths start (cpp/lightpath.cpp)
+            if pos is None:  # directional: the centre of the disk its paths start on
                 pos = _sun_disk_centre(native, scene.lights[i].direction)
             if _reaches_camera_freely(native, tracer, scene, pos[None])[0]:
                 per_light[lights_area + i] = camera_medium
@@ -160,13 +160,12 @@ def emission_media(native: NativeScene, tracer: EmbreeTracer, scene: Scene, seed
 
 
 def _sun_disk_centre(native: NativeScene, direction: np.ndarray) -> np.ndarray:
-    """Centre of the disk a directional light's paths start on: the scene's bounding-box
-    centre, 1.01 bounding radii against the direction of travel (as Scene::finalize and
-    the light-path kernel place it)."""
-    points = native.triangles.reshape(-1, 3).astype(np.float64)
-    lo, hi = points.min(axis=0), points.max(axis=0)
-    radius = max(1e-30, float(np.linalg.norm(hi - lo)) * 0.5)
-    return (lo + hi) * 0.5 - np.asarray(direction, np.float64) * radius * 1.01
+    """Centre of the disk a directional light's paths start on (cpp/lightpath.cpp): the
+    core's scene centre, 1.01 scene radii against the direction of travel."""
+    core = native.core
+    return np.asarray(core.scene_center) - np.asarray(direction, np.float64) * (
+        1.01 * core.scene_radius
+    )
 
 
 def _reaches_camera_freely(

@@ -897,15 +897,17 @@ def scene_content_digest(path: str | Path) -> str:
     main = find_scene_file(path).resolve()
     for file in scene_sources(main):
         h.update(os.path.relpath(file, main.parent).encode() + b"\0")  # stable if moved
-        data = file.read_bytes()
+        doc = None
         if file.suffix in (".yaml", ".yml"):
             try:
                 doc = _read_yaml(file)
             except PgiError:
-                doc = None
-            if doc is not None:
-                kept = {k: v for k, v in doc.items() if k not in REPORT_ONLY_KEYS}
-                data = json.dumps(kept, sort_keys=True, default=str).encode()
+                pass  # unreadable as a scene: its bytes stand for it
+        if doc is None:
+            data = file.read_bytes()
+        else:
+            kept = {k: v for k, v in doc.items() if k not in REPORT_ONLY_KEYS}
+            data = json.dumps(kept, sort_keys=True, default=str).encode()
         h.update(data + b"\0")
     return h.hexdigest()[:16]
 
