@@ -4,7 +4,8 @@
 
 (a) Ray throughput: pt's rays per second over whole waves (after a warm-up wave), against
     raw embreex on the very rays pt traced (one wave's extension and shadow batches, recorded,
-    then re-traced alone by the same tracer with the same thread count). Also the time per
+    then re-traced alone by the same tracer with the same thread count and the same query:
+    closest hit, or occlusion for shadow rays in scenes without null boundaries). Also the time per
     ray of those Embree calls inside pt against the same calls alone: when the two agree, the
     gap between pt's rate and the raw rate is all in pt's own passes.
 (b) Equal time: relMSE of pt and of Mitsuba volpath (fastest variant here) after the same
@@ -47,40 +48,52 @@ def raw_embree_rate(scene, threads: int, waves: int = 4) -> tuple[float, float, 
         seconds = time.perf_counter() - start
         pt_rate = max(pt_rate, (method.tracer.rays_traced - rays) / seconds)
 
-    batches = []
-    original = method.tracer.intersect
+    tracer = method.tracer
+    batches = []  # (query, origins, directions, tmax) of each Embree call of the wave
     inside = copying = 0.0  # seconds of the recorded wave's Embree calls and copies
 
-    def recording(batch, n):
-        nonlocal inside, copying
-        start = time.perf_counter()
-        batches.append(
-            (batch.origins[:n].copy(), batch.directions[:n].copy(), batch.tmax[:n].copy())
-        )
-        traced = time.perf_counter()
-        hits = original(batch, n)
-        inside += time.perf_counter() - traced
-        copying += traced - start
-        return hits
+    def recording(query):
+        original = getattr(tracer, query)
 
-    method.tracer.intersect = recording
+        def call(batch, n):
+            nonlocal inside, copying
+            start = time.perf_counter()
+            batches.append(
+                (
+                    query,
+                    batch.origins[:n].copy(),
+                    batch.directions[:n].copy(),
+                    batch.tmax[:n].copy(),
+                )
+            )
+            traced = time.perf_counter()
+            result = original(batch, n)
+            inside += time.perf_counter() - traced
+            copying += traced - start
+            return result
+
+        return call
+
+    # Extension rays ask for closest hits; shadow rays in scenes without null boundaries
+    # only for occlusion: the replay asks Embree the same questions.
+    tracer.intersect, tracer.occluded = recording("intersect"), recording("occluded")
     start = time.perf_counter()
     method.run_iteration(waves + 1)
     wave = time.perf_counter() - start
-    method.tracer.intersect = original
-    rays = sum(len(b[0]) for b in batches)
+    del tracer.intersect, tracer.occluded
+    rays = sum(len(b[1]) for b in batches)
 
     replay = []
-    for o, d, t in batches:
+    for query, o, d, t in batches:
         b = RayBatch(len(o))
         b.origins[:], b.directions[:] = o, d
-        replay.append((b, t))
+        replay.append((getattr(tracer, query), b, t))
     best = np.inf
     for _ in range(3):
         start = time.perf_counter()
-        for b, t in replay:
+        for trace, b, t in replay:
             b.tmax[:] = t
-            method.tracer.intersect(b, len(t))
+            trace(b, len(t))
         best = min(best, time.perf_counter() - start)
     return pt_rate, rays / best, rays / inside, (wave - inside - copying) / rays
 

@@ -58,3 +58,61 @@ def test_unknown_parameter_is_a_clear_error():
 
     with pytest.raises(PgiError, match="unknown parameter"):
         PathTracing(load_small("cbox", 8, 8), seed=0, threads=1, params={"bogus": 1})
+
+
+class _ClosestHitShadows:
+    """A pt kernel that resolves its shadow rays from closest hits, as with null boundaries."""
+
+    shadows_any_hit = False
+
+    def __init__(self, kernel) -> None:
+        self._kernel = kernel
+
+    def __getattr__(self, name: str):
+        return getattr(self._kernel, name)
+
+
+def test_occlusion_queries_give_the_image_of_closest_hits():
+    # Without null boundaries a shadow ray only asks Embree whether anything blocks it;
+    # resolving the same rays from closest hits must give the very same image.
+    scene = load_small("cbox", 24, 24)
+    any_hit = PathTracing(scene, seed=5, threads=2, params={"spp_per_wave": 2})
+    closest = PathTracing(scene, seed=5, threads=2, params={"spp_per_wave": 2})
+    assert any_hit.kernel.shadows_any_hit
+    closest.kernel = _ClosestHitShadows(closest.kernel)
+    for i in range(3):
+        any_hit.run_iteration(i)
+        closest.run_iteration(i)
+    assert any_hit.image().max() > 0
+    assert np.array_equal(any_hit.image(), closest.image())
+
+
+def test_occlusion_query_refused_where_shadow_rays_cross_null_boundaries():
+    kernel = PathTracing(load_small("cbox-fog", 8, 8), seed=0, threads=1, params={}).kernel
+    assert not kernel.shadows_any_hit
+    with pytest.raises(ValueError, match="null boundaries"):
+        kernel.resolve_occlusion(np.zeros(0, np.int32))
+
+
+def test_occluded_agrees_with_closest_hits_within_tmax():
+    from renderer.engine import build_native_scene
+    from renderer.tracer import EmbreeTracer, RayBatch
+
+    native = build_native_scene(load_small("cbox", 8, 8))
+    tracer = EmbreeTracer(native.triangles, 2)
+    corners = native.triangles.reshape(-1, 3)
+    lo, hi = corners.min(axis=0), corners.max(axis=0)
+    rng = np.random.default_rng(1)
+    n = 20000  # enough for both threads to take a chunk
+    start = lo + (hi - lo) * rng.uniform(0.02, 0.98, (n, 3))
+    end = lo + (hi - lo) * rng.uniform(0.02, 0.98, (n, 3))
+    batch = RayBatch(n)
+    batch.origins[:] = start
+    span = np.linalg.norm(end - start, axis=1)
+    batch.directions[:] = (end - start) / span[:, None]
+    batch.tmax[:] = span
+    blocked = tracer.occluded(batch, n) >= 0
+    batch.tmax[:] = span  # Embree shortens tmax in place
+    _, prim, _, _ = tracer.intersect(batch, n)
+    assert 0.05 < blocked.mean() < 0.95
+    assert np.array_equal(blocked, prim >= 0)

@@ -13,10 +13,16 @@ from .tracer import EmbreeTracer, RayBatch
 
 
 def resolve_shadow_rays(kernel: Any, tracer: EmbreeTracer, shadows: RayBatch) -> None:
-    """Trace the queued shadow rays segment by segment until each is blocked or arrives."""
+    """Trace the queued shadow rays segment by segment until each is blocked or arrives.
+    Without null boundaries in the scene a ray has one segment, and whether anything
+    blocks it is all it needs: Embree's occlusion query answers that for less."""
+    any_hit = kernel.shadows_any_hit
     while queued := kernel.shadow_rays(*shadows.buffers):
-        tfar, prim, _, _ = tracer.intersect(shadows, queued)
-        kernel.resolve_shadows(tfar, prim)
+        if any_hit:
+            kernel.resolve_occlusion(tracer.occluded(shadows, queued))
+        else:
+            tfar, prim, _, _ = tracer.intersect(shadows, queued)
+            kernel.resolve_shadows(tfar, prim)
 
 
 def trace_camera_wave(

@@ -40,28 +40,40 @@ class EmbreeTracer:
         self._pool = ThreadPoolExecutor(self.threads) if self.threads > 1 else None
         self.rays_traced = 0
 
-    def _run(self, batch: RayBatch, lo: int, hi: int) -> dict:
+    def _closest(self, batch: RayBatch, lo: int, hi: int) -> dict:
         return self._scene.run(
             batch.origins[lo:hi], batch.directions[lo:hi], batch.tmax[lo:hi], output=1
         )
+
+    def _any(self, batch: RayBatch, lo: int, hi: int) -> np.ndarray:
+        return self._scene.run(
+            batch.origins[lo:hi], batch.directions[lo:hi], batch.tmax[lo:hi], query="OCCLUDED"
+        )
+
+    def _split(self, run, batch: RayBatch, n: int) -> list:
+        """run(batch, lo, hi) over the first n rays, in one chunk per thread when worth it."""
+        self.rays_traced += n
+        chunks = self.threads if self._pool and n >= 2 * _MIN_RAYS_PER_THREAD else 1
+        if chunks == 1:
+            return [run(batch, 0, n)]
+        bounds = np.linspace(0, n, chunks + 1).astype(int)
+        return list(self._pool.map(lambda i: run(batch, bounds[i], bounds[i + 1]), range(chunks)))
 
     def intersect(
         self, batch: RayBatch, n: int
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Closest hits of the first n rays: (tfar, primitive id or -1, u, v)."""
-        self.rays_traced += n
-        chunks = self.threads if self._pool and n >= 2 * _MIN_RAYS_PER_THREAD else 1
-        if chunks == 1:
-            parts = [self._run(batch, 0, n)]
-        else:
-            bounds = np.linspace(0, n, chunks + 1).astype(int)
-            parts = list(
-                self._pool.map(lambda i: self._run(batch, bounds[i], bounds[i + 1]), range(chunks))
-            )
+        parts = self._split(self._closest, batch, n)
         if len(parts) == 1:
             p = parts[0]
             return p["tfar"], p["primID"], p["u"], p["v"]
         return tuple(np.concatenate([p[k] for p in parts]) for k in ("tfar", "primID", "u", "v"))
+
+    def occluded(self, batch: RayBatch, n: int) -> np.ndarray:
+        """Whether anything blocks each of the first n rays within its tmax: an int32 per
+        ray, -1 where nothing does. Embree stops at the first hit it finds."""
+        parts = self._split(self._any, batch, n)
+        return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
     def close(self) -> None:
         if self._pool:

@@ -70,6 +70,34 @@ inline NumpyOut<double> film_image(const Film &f) {
 }
 
 
+// The shadow-ray passes of every kernel with a ShadowQueue: write the next
+// segments, then resolve them from Embree's closest hits (tfar, primitive id)
+// or, when no surface of the scene is a null boundary (`shadows_any_hit`),
+// from the cheaper occlusion query (`blocked` >= 0 where something blocks).
+template <typename Kernel>
+void def_shadow_passes(nb::class_<Kernel> &cls) {
+    cls.def("shadow_rays",
+            [](Kernel &k, Array<float> o, Array<float> d, Array<float> t) {
+                RayBuffers b = ray_buffers(o, d, t);
+                nb::gil_scoped_release release;
+                return k.shadow_rays(b);
+            })
+        .def("resolve_shadows",
+             [](Kernel &k, Array<float> tfar, Array<int32_t> prim) {
+                 check_len(tfar.shape(0), prim.shape(0), "tfar");
+                 Hits h{tfar.data(), nullptr, nullptr, prim.data(), prim.shape(0)};
+                 nb::gil_scoped_release release;
+                 k.resolve_shadows(h);
+             })
+        .def("resolve_occlusion",
+             [](Kernel &k, Array<int32_t> blocked) {
+                 Hits h{nullptr, nullptr, nullptr, blocked.data(), blocked.shape(0), true};
+                 nb::gil_scoped_release release;
+                 k.resolve_shadows(h);
+             })
+        .def_prop_ro("shadows_any_hit", [](const Kernel &k) { return !k.scene().has_null_surfaces; });
+}
+
 // Probes of a phase function for tests: what the renderer samples from uniform
 // numbers u (n, 2), and the density it evaluates for directions wi (n, 3).
 inline auto probe_phase_sample(const Phase &ph, const V3 &wo, Array<double> u) {

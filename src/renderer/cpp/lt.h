@@ -79,6 +79,7 @@ public:
     void end_iteration();
 
     const Film &film() const { return film_; }
+    const Scene &scene() const { return *scene_; }
     uint64_t density_lookups() const { return stats_.density_lookups; }
     uint64_t light_paths() const { return light_paths_; }
 

@@ -127,24 +127,14 @@ void bind_lt(nb::module_ &m) {
         .def_prop_ro("density_lookups", &LightPathTracer::density_lookups)
         .def_prop_ro("paths_traced", &LightPathTracer::paths_traced);
 
-    nb::class_<LightTracer>(m, "LightTracer")
+    nb::class_<LightTracer> lt_class(m, "LightTracer");
+    def_shadow_passes(lt_class);
+    lt_class
         .def(nb::init<std::shared_ptr<const Scene>, uint64_t, int>(), "scene"_a, "seed"_a, "threads"_a)
         .def("connect",
              [](LightTracer &lt, const LightPathTracer &paths) {
                  nb::gil_scoped_release release;
                  return lt.connect(paths);
-             })
-        .def("shadow_rays",
-             [](LightTracer &lt, Array<float> o, Array<float> d, Array<float> t) {
-                 RayBuffers b = ray_buffers(o, d, t);
-                 nb::gil_scoped_release release;
-                 return lt.shadow_rays(b);
-             })
-        .def("resolve_shadows",
-             [](LightTracer &lt, Array<float> tfar, Array<int32_t> prim) {
-                 Hits h{tfar.data(), nullptr, nullptr, prim.data(), prim.shape(0)};
-                 nb::gil_scoped_release release;
-                 lt.resolve_shadows(h);
              })
         .def("end_iteration", &LightTracer::end_iteration, nb::call_guard<nb::gil_scoped_release>())
         .def("image", [](const LightTracer &lt) { return film_image(lt.film()); })

@@ -94,6 +94,7 @@ public:
     void end_wave();
 
     const Film &film() const { return film_; }
+    const Scene &scene() const { return *scene_; }
     const BeamBvh &bvh() const { return bvh_; }
     const BeamStats &stats() const { return stats_; }
 

@@ -72,7 +72,9 @@ void bind_ppb(nb::module_ &m) {
         .def_prop_ro("piece_length", &BeamBvh::piece_length)
         .def_prop_ro("truncated", &BeamBvh::truncated);
 
-    nb::class_<PhotonBeams>(m, "PhotonBeams")
+    nb::class_<PhotonBeams> beams_class(m, "PhotonBeams");
+    def_shadow_passes(beams_class);
+    beams_class
         .def(nb::init<std::shared_ptr<const Scene>, int, int, uint64_t, int, int, size_t, double, double, int>(),
              "scene"_a, "max_depth"_a, "rr_depth"_a, "seed"_a, "spp_per_iteration"_a, "threads"_a, "max_beams"_a,
              "radius"_a, "alpha"_a, "gather_diffuse_bounces"_a)
@@ -95,18 +97,6 @@ void bind_ppb(nb::module_ &m) {
                  Hits h = hits_of(tfar, prim, u, v);
                  nb::gil_scoped_release release;
                  return pb.shade(h);
-             })
-        .def("shadow_rays",
-             [](PhotonBeams &pb, Array<float> o, Array<float> d, Array<float> t) {
-                 RayBuffers b = ray_buffers(o, d, t);
-                 nb::gil_scoped_release release;
-                 return pb.shadow_rays(b);
-             })
-        .def("resolve_shadows",
-             [](PhotonBeams &pb, Array<float> tfar, Array<int32_t> prim) {
-                 Hits h{tfar.data(), nullptr, nullptr, prim.data(), prim.shape(0)};
-                 nb::gil_scoped_release release;
-                 pb.resolve_shadows(h);
              })
         .def("next_rays",
              [](PhotonBeams &pb, Array<float> o, Array<float> d, Array<float> t) {

@@ -41,6 +41,7 @@ public:
     uint64_t media_segments() const { return stats_.segments; }
     uint64_t paths_traced() const { return paths_traced_; }
     int threads() const { return threads_; }
+    const Scene &scene() const { return *scene_; }
 
 private:
     std::shared_ptr<const Scene> scene_;

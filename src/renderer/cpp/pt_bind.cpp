@@ -7,7 +7,9 @@ namespace pgi::bind {
 using namespace nb::literals;
 
 void bind_pt(nb::module_ &m) {
-    nb::class_<PathTracer>(m, "PathTracer")
+    nb::class_<PathTracer> pt_class(m, "PathTracer");
+    def_shadow_passes(pt_class);
+    pt_class
         .def(nb::init<std::shared_ptr<const Scene>, int, int, uint64_t, int, int>(), "scene"_a, "max_depth"_a,
              "rr_depth"_a, "seed"_a, "spp_per_wave"_a, "threads"_a)
         .def_prop_ro("capacity", &PathTracer::capacity)
@@ -23,18 +25,6 @@ void bind_pt(nb::module_ &m) {
                  Hits h = hits_of(tfar, prim, u, v);
                  nb::gil_scoped_release release;
                  return pt.shade(h);
-             })
-        .def("shadow_rays",
-             [](PathTracer &pt, Array<float> o, Array<float> d, Array<float> t) {
-                 RayBuffers b = ray_buffers(o, d, t);
-                 nb::gil_scoped_release release;
-                 return pt.shadow_rays(b);
-             })
-        .def("resolve_shadows",
-             [](PathTracer &pt, Array<float> tfar, Array<int32_t> prim) {
-                 Hits h{tfar.data(), nullptr, nullptr, prim.data(), prim.shape(0)};
-                 nb::gil_scoped_release release;
-                 pt.resolve_shadows(h);
              })
         .def("next_rays",
              [](PathTracer &pt, Array<float> o, Array<float> d, Array<float> t) {

@@ -15,6 +15,9 @@ void Scene::finalize() {
     scene_center = (lo + hi) * 0.5;
     scene_radius = std::max(1e-30, length(hi - lo) * 0.5);
     ray_epsilon = 1e-5 * scene_radius;
+    has_null_surfaces = std::any_of(triangles.begin(), triangles.end(), [&](const Triangle &t) {
+        return materials[t.material].type == MaterialType::Null;
+    });
 
     for (AreaEmitter &e : area_emitters) {
         std::vector<double> areas;

@@ -88,6 +88,8 @@ public:
     double ray_epsilon = 1e-5;  // surface offset, relative to the scene's size
     double scene_radius = 1;
     Vec3 scene_center;
+    // Some triangle is a null (index-matched) boundary that paths and shadow rays cross.
+    bool has_null_surfaces = false;
 
     void finalize();
 

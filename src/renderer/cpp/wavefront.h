@@ -40,11 +40,14 @@ struct RayBuffers {
     }
 };
 
-// Hits returned by Embree for a batch: prim < 0 means no hit.
+// Hits returned by Embree for a batch: prim < 0 means no hit. Shadow rays of a
+// scene without null boundaries may come from an occlusion query instead
+// (any_hit): prim >= 0 then only says that something blocks the segment.
 struct Hits {
     const float *tfar = nullptr, *u = nullptr, *v = nullptr;
     const int32_t *prim = nullptr;
     size_t count = 0;
+    bool any_hit = false;
     // Hit k belongs to ray k of the batch the kernel wrote: the counts must agree.
     void expect(size_t rays, const char *pass) const {
         if (count != rays)
@@ -163,12 +166,20 @@ public:
     template <typename Deliver>
     void resolve(const Scene &scene, const Hits &hits, int threads, MediumStats &stats, Deliver &&deliver) {
         hits.expect(travelling_.size(), "resolve_shadows");
+        if (hits.any_hit && scene.has_null_surfaces)
+            throw std::invalid_argument("resolve_shadows: an occlusion query cannot see through null boundaries");
         MediumStats counts;
 #pragma omp parallel for schedule(static) num_threads(threads) reduction(+ : counts)
         for (int64_t j = 0; j < int64_t(travelling_.size()); ++j) {
             ShadowRay &r = slots_[travelling_[j]];
+            const int tri = hits.prim[j];
             double remaining = r.remaining();
-            bool blocked = hits.prim[j] >= 0 && hits.tfar[j] < remaining - r.target_eps;
+            bool blocked = tri >= 0 && (hits.any_hit || hits.tfar[j] < remaining - r.target_eps);
+            // An opaque blocker ends the ray: no transmittance to estimate on the way.
+            if (blocked && (hits.any_hit || scene.materials[scene.triangles[tri].material].type != MaterialType::Null)) {
+                r.live = false;
+                continue;
+            }
             double t = blocked ? double(hits.tfar[j]) : remaining;
             if (r.medium >= 0) {
                 r.contribution *= transmittance(scene.media[r.medium], r.origin, r.dir, t, r.rng, counts);
@@ -178,12 +189,11 @@ public:
                 if (!is_black(r.contribution)) deliver(r.receiver, r.contribution);
                 continue;
             }
-            int tri = hits.prim[j];
-            const Triangle &T = scene.triangles[tri];
-            if (scene.materials[T.material].type != MaterialType::Null || is_black(r.contribution)) {
-                r.live = false;  // occluded
+            if (is_black(r.contribution)) {  // nothing left to carry through the boundary
+                r.live = false;
                 continue;
             }
+            const Triangle &T = scene.triangles[tri];
             Vec3 p = r.origin + r.dir * t;
             r.medium = T.medium_after(r.medium, r.dir);
             r.restart_at(scene.offset(p, tri, r.dir));
