@@ -77,10 +77,12 @@ def raw_embree_rate(scene, threads: int, waves: int = 4) -> tuple[float, float, 
     # Extension rays ask for closest hits; shadow rays in scenes without null boundaries
     # only for occlusion: the replay asks Embree the same questions.
     tracer.intersect, tracer.occluded = recording("intersect"), recording("occluded")
-    start = time.perf_counter()
-    method.run_iteration(waves + 1)
-    wave = time.perf_counter() - start
-    del tracer.intersect, tracer.occluded
+    try:
+        start = time.perf_counter()
+        method.run_iteration(waves + 1)
+        wave = time.perf_counter() - start
+    finally:
+        del tracer.intersect, tracer.occluded
     rays = sum(len(b[1]) for b in batches)
 
     replay = []

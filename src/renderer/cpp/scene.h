@@ -89,7 +89,8 @@ public:
     double scene_radius = 1;
     Vec3 scene_center;
     // Some triangle is a null (index-matched) boundary that paths and shadow rays cross.
-    bool has_null_surfaces = false;
+    // Starts true so that a scene not yet finalized never lets shadow rays skip a boundary.
+    bool has_null_surfaces = true;
 
     void finalize();
 

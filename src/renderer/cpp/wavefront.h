@@ -36,7 +36,9 @@ struct RayBuffers {
     void put(size_t k, const Vec3 &o, const Vec3 &d, double t) const {
         org[3 * k] = float(o.x); org[3 * k + 1] = float(o.y); org[3 * k + 2] = float(o.z);
         dir[3 * k] = float(d.x); dir[3 * k + 1] = float(d.y); dir[3 * k + 2] = float(d.z);
-        tmax[k] = std::isfinite(t) ? float(t) : kFarDistance;
+        // A shadow ray that starts within target_eps of its target has t < 0: Embree
+        // deactivates such rays, and its occlusion query would then report them blocked.
+        tmax[k] = std::isfinite(t) ? float(std::max(0.0, t)) : kFarDistance;
     }
 };
 
