@@ -135,6 +135,24 @@ def test_missing_mesh_file(tmp_path):
     expect_error(write(tmp_path, doc), "shapes[2].file", "mesh file not found")
 
 
+@pytest.mark.parametrize("name", ["empty.ply", "empty.obj"])
+def test_empty_mesh_file(tmp_path, name):
+    (tmp_path / name).write_bytes(b"")
+    doc = edit()
+    doc["shapes"].append({"type": "mesh", "file": name, "material": "white"})
+    expect_error(write(tmp_path, doc), "shapes[2].file", "mesh file is empty")
+
+
+def test_nesting_too_deep_for_the_yaml_reader(tmp_path):
+    path = write(tmp_path, "film: " + "[" * 5000 + "]" * 5000 + "\n")
+    with pytest.raises(
+        PgiError, match=rf"^{re.escape(str(path))}.*: invalid YAML: nested too deeply"
+    ):
+        load_scene(path)
+    with pytest.raises(PgiError, match="value is not valid YAML"):
+        load_scene(write(tmp_path, BASE), ["film.width=" + "[" * 5000 + "]" * 5000])
+
+
 def test_mesh_file_loads_through_mitsuba(tmp_path):
     (tmp_path / "tri.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\n")
     doc = edit()

@@ -107,6 +107,7 @@ def cmd_render(args: argparse.Namespace) -> int:
 
 def cmd_reference(args: argparse.Namespace) -> int:
     from .imageio import check_output_path, write_image_and_sidecar
+    from .methods import check_overrides
     from .progressive import Progress, check_threads
     from .reference import render_reference
     from .scene import load_scene
@@ -114,6 +115,7 @@ def cmd_reference(args: argparse.Namespace) -> int:
     out = check_output_path(args.output)
     check_threads(args.threads)
     overrides, _ = _split_sets(args.set, "reference")
+    check_overrides("mitsuba", overrides)  # the reference is Mitsuba's volpath
     scene = load_scene(args.scene, overrides)
     bar = Progress(None, args.spp, enabled=not args.quiet)
     image, info = render_reference(

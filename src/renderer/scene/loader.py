@@ -114,9 +114,22 @@ _UniqueKeyLoader.add_implicit_resolver(
 )
 
 
+class _TooDeep(yaml.YAMLError):
+    """Nesting deeper than the YAML reader's recursion can follow."""
+
+    problem = "nested too deeply"
+
+
+def _load_yaml(text: str) -> Any:
+    try:
+        return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 (a SafeLoader subclass)
+    except RecursionError:
+        raise _TooDeep() from None
+
+
 def parse_yaml_value(text: str) -> Any:
     """A value given on the command line, read as scene files are (1e-3 is a number)."""
-    return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 (a SafeLoader subclass)
+    return _load_yaml(text)
 
 
 def _read_yaml(path: Path) -> dict:
@@ -129,7 +142,7 @@ def _read_yaml(path: Path) -> dict:
             f"{path}: not a UTF-8 text file (byte {e.start}: {e.reason}); scene files are YAML"
         ) from None
     try:
-        doc = yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 (a SafeLoader subclass)
+        doc = _load_yaml(text)
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None)
         where = f"{path}:{mark.line + 1}" if mark else str(path)
@@ -698,6 +711,8 @@ def _mesh_file(val: _Validator, v: Any, p: KeyPath) -> tuple[np.ndarray, np.ndar
         val.fail(p, f"expected a .ply or .obj file, got {file.name!r}")
     if not file.is_file():
         val.fail(p, f"mesh file not found: {file}")
+    if file.stat().st_size == 0:  # Mitsuba's own message for it names another cause
+        val.fail(p, f"mesh file is empty: {file}")
     from renderer.mitsuba_env import import_mitsuba
 
     mi = import_mitsuba()
