@@ -875,28 +875,40 @@ def load_scene(path: str | Path, overrides: Sequence[str] = ()) -> Scene:
     )  # fmt: skip
 
 
+def _scene_documents(main: Path) -> list[tuple[Path, dict | None]]:
+    """Every file the scene file ``main`` reads, each with its parsed YAML document (None for
+    an asset, or a scene file that cannot be parsed): the main file, its includes, then the
+    assets they name. Each file is read once."""
+    try:
+        doc = _read_yaml(main)
+    except PgiError:
+        return [(main, None)]
+    include = doc.get("include") or []
+    names = [include] if isinstance(include, str) else include if isinstance(include, list) else []
+    files = [main] + [(main.parent / n).resolve() for n in names
+                      if isinstance(n, str) and (main.parent / n).is_file()]  # fmt: skip
+    found: list[tuple[Path, dict | None]] = []
+    for file in files:
+        try:
+            found.append((file, doc if file == main else _read_yaml(file)))
+        except PgiError:
+            found.append((file, None))
+    seen = set(files)
+    for file, part in list(found):
+        for asset in _named_assets(part, file.parent) if part is not None else ():
+            if asset.is_file() and asset not in seen:
+                seen.add(asset)
+                found.append((asset, None))
+    return found
+
+
 def scene_sources(path: str | Path) -> list[Path]:
     """Every file a scene reads: its scene file, the files it includes and the assets they name
     (meshes, density grids, phase tables), each resolved as the loader resolves it. Files that
     cannot be found or read are left out (loading the scene reports them); a workflow makes
     these its inputs so that editing any of them reruns what depends on the scene."""
     main = find_scene_file(path).resolve()  # resolved: ".." after a symlink means its target's
-    try:
-        doc = _read_yaml(main)
-    except PgiError:
-        return [main]
-    include = doc.get("include") or []
-    names = [include] if isinstance(include, str) else include if isinstance(include, list) else []
-    files = [main] + [(main.parent / n).resolve() for n in names
-                      if isinstance(n, str) and (main.parent / n).is_file()]  # fmt: skip
-    found = list(files)
-    for file in files:
-        try:
-            part = doc if file == main else _read_yaml(file)
-        except PgiError:
-            continue
-        found += [a for a in _named_assets(part, file.parent) if a.is_file() and a not in found]
-    return found
+    return [file for file, _ in _scene_documents(main)]
 
 
 # Keys only the report reads: editing them changes no image.
@@ -906,18 +918,12 @@ REPORT_ONLY_KEYS = ("description", "stresses", "expected_winners")
 def scene_content_digest(path: str | Path) -> str:
     """A digest of what a scene renders: its YAML files as parsed, without the report-only
     keys (so comments, layout and a scene's description do not count), and the bytes of
-    the assets they name. The workflow reruns a scene's renders and references when it
-    changes."""
+    the assets they name (and of scene files that cannot be parsed). The workflow reruns a
+    scene's renders and references when it changes."""
     h = hashlib.sha256()
     main = find_scene_file(path).resolve()
-    for file in scene_sources(main):
+    for file, doc in _scene_documents(main):
         h.update(os.path.relpath(file, main.parent).encode() + b"\0")  # stable if moved
-        doc = None
-        if file.suffix in (".yaml", ".yml"):
-            try:
-                doc = _read_yaml(file)
-            except PgiError:
-                pass  # unreadable as a scene: its bytes stand for it
         if doc is None:
             data = file.read_bytes()
         else:
