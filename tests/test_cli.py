@@ -214,6 +214,24 @@ def test_user_mistakes_are_one_line_errors(tmp_path, args, expected):
         assert v.returncode == 2 and expected in v.stderr, v.stderr
 
 
+def test_unreadable_method_parameter_says_why_in_one_short_line(tmp_path):
+    deep = "[" * 5000 + "]" * 5000
+    item = f"method.spp_per_wave={deep}"
+    r = pgi(
+        "render", "cbox", "--method", "pt", "--spp", "1", "--set", item, "-o", "x.exr", cwd=tmp_path
+    )
+    assert r.returncode == 2 and not list(tmp_path.iterdir())
+    assert r.stderr == (
+        f"pgi: error: --set method.spp_per_wave: value {'[' * 37 + '...'!r} is not valid YAML"
+        " (nested too deeply)\n"
+    )
+    r = pgi("validate", "cbox", "--set", item)
+    assert (
+        r.stderr
+        == "pgi: error: --set method.spp_per_wave: method parameters apply to `pgi render` only\n"
+    )
+
+
 def test_images_that_are_not_whole_exr_files_are_refused(tmp_path):
     """A truncated EXR (its pixels fail to decode) and a PNG named .exr: no metrics."""
     from renderer.imageio import write_exr

@@ -8,8 +8,6 @@ import math
 import sys
 from pathlib import Path
 
-import yaml
-
 from . import __version__
 from .errors import PgiError
 
@@ -57,14 +55,11 @@ def _split_sets(items: list[str], command: str = "render") -> tuple[list[str], d
             raise PgiError(f"--set {item!r}: expected key=value")
         key, value = item.split("=", 1)
         if key.startswith("method.") and command != "render":
-            raise PgiError(f"--set {item!r}: method parameters apply to `pgi render` only")
+            raise PgiError(f"--set {key}: method parameters apply to `pgi render` only")
         if key.startswith("method."):
             from .scene.loader import parse_yaml_value
 
-            try:
-                params[key[len("method.") :]] = parse_yaml_value(value)
-            except yaml.YAMLError:
-                raise PgiError(f"--set {item!r}: the value is not valid YAML") from None
+            params[key[len("method.") :]] = parse_yaml_value(value, f"--set {key}")
         else:
             overrides.append(item)
     return overrides, params

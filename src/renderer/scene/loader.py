@@ -127,9 +127,17 @@ def _load_yaml(text: str) -> Any:
         raise _TooDeep() from None
 
 
-def parse_yaml_value(text: str) -> Any:
-    """A value given on the command line, read as scene files are (1e-3 is a number)."""
-    return _load_yaml(text)
+def parse_yaml_value(text: str, where: str) -> Any:
+    """A value given on the command line, read as scene files are (1e-3 is a number).
+    A value YAML cannot read is a PgiError naming `where`, the value (shortened) and why."""
+    try:
+        return _load_yaml(text)
+    except yaml.YAMLError as e:
+        shown = text if len(text) <= 40 else text[:37] + "..."
+        why = getattr(e, "problem", None)
+        raise PgiError(
+            f"{where}: value {shown!r} is not valid YAML" + (f" ({why})" if why else "")
+        ) from None
 
 
 def _read_yaml(path: Path) -> dict:
@@ -273,10 +281,7 @@ def _apply_override(doc: dict, text: str, origins: _Origins) -> None:
             f"override {text!r}: includes are merged before overrides apply; "
             "name the file in the scene's `include` instead"
         )
-    try:
-        value = parse_yaml_value(raw)
-    except yaml.YAMLError as e:
-        raise PgiError(f"override {text!r}: value is not valid YAML") from e
+    value = parse_yaml_value(raw, f"override {key!r}")
     node: Any = doc
     created: list[tuple] = []  # mappings the override makes: errors there are the override's
     for n, tok in enumerate(tokens):
