@@ -177,8 +177,7 @@ THICKNESS = [1e-4, 1e-2, 1.0, 10.0, 1e2, 1e3]
 
 # Hypothesis tests in this file, for the Sidak correction: homogeneous gray free flight
 # (binomial + chi2 + KS), RGB free flight (3 channels x (1 pass + 8 bins)), ratio tracking and
-# delta tracking (binomial + KS) per transform and ray, majorant-cell variants, dense voxel,
-# thickness sweep (t-tests where T is measurable).
+# delta tracking (binomial + KS) per transform and ray, majorant-cell variants, dense voxel.
 RGB_BINS = 8
 N_TESTS = (
     3
@@ -187,7 +186,6 @@ N_TESTS = (
     + 2 * len(GRID_TRANSFORMS) * len(FREE_FLIGHT_RAYS)
     + 3
     + 1
-    + len(THICKNESS)
 )
 LEVEL = stats.sidak(stats.ALPHA, N_TESTS)
 
@@ -401,24 +399,12 @@ def test_single_dense_voxel():
 
 @pytest.mark.parametrize("tau", THICKNESS)
 def test_optical_thickness_range(tau):
-    """From nearly transparent to opaque: finite, in [0, 1], and unbiased where measurable."""
+    """Homogeneous media from nearly transparent to opaque: closed-form transmittance exact per
+    channel, free flights finite and inside the segment. (Grids over the same range of
+    thickness, with statistical tests, are in test_stability.py.)"""
     scene, m = homogeneous((tau, tau / 2, tau * 2), albedo=(0.5, 0.5, 0.5))
     tr, _ = scene.transmittance(m, (0, 0, 0), (0, 0, 1), 1.0, 1, 1)
     np.testing.assert_allclose(tr, np.exp(-np.array([tau, tau / 2, tau * 2])), rtol=1e-12)
     t, w = scene.free_flight(m, (0, 0, 0), (0, 0, 1), 1.0, 1, 10_000)
     assert np.all(np.isfinite(w)) and np.all(w >= 0)
     assert np.all((t[np.isfinite(t)] >= 0) & (t[np.isfinite(t)] < 1))
-
-    grid = GridRef(smooth_density((8, 8, 8), seed=7), affine(), 1.0)
-    o, d, tmax = world_ray(grid, "diagonal-through")
-    grid = GridRef(grid.density, grid.to_world, tau / grid.optical_depth(o, d, tmax)[0])
-    exact = math.exp(-grid.optical_depth(o, d, tmax)[0])
-    paths = 2000 if tau <= 10 else 200  # opaque media: many lookups per path, range checks only
-    mean, se, lookups = grid.transmittance_batches(o, d, tmax, paths, 16, seed=400)
-    assert math.isfinite(mean) and 0 <= mean <= 1 and lookups >= 0
-    if exact > 1e-6:  # below that the ratio-tracking estimate is a rare event: range checks only
-        assert stats.t_p_value(mean, exact, se, 15) >= LEVEL, (mean, exact, se)
-    t, w = grid.scene.free_flight(grid.id, tuple(o), tuple(d), tmax, 5, 2000)
-    assert np.all(np.isfinite(w)) and np.all(w >= 0)
-    if tau >= 1e2:
-        assert np.all(np.isfinite(t))  # opaque: every path collides
