@@ -171,7 +171,7 @@ public:
         if (hits.any_hit && scene.has_null_surfaces)
             throw std::invalid_argument("resolve_shadows: an occlusion query cannot see through null boundaries");
         MediumStats counts;
-#pragma omp parallel for schedule(static) num_threads(threads) reduction(+ : counts)
+#pragma omp parallel for schedule(dynamic, 512) num_threads(threads) reduction(+ : counts)
         for (int64_t j = 0; j < int64_t(travelling_.size()); ++j) {
             ShadowRay &r = slots_[travelling_[j]];
             const int tri = hits.prim[j];
