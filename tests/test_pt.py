@@ -26,6 +26,19 @@ def test_same_seed_same_image_whatever_the_thread_count(name):
     assert np.all(np.isfinite(one)) and one.max() > 0
 
 
+def test_same_samples_same_image_whatever_the_wave_size():
+    """Sample s of pixel p is keyed by (seed, s, p), and the film adds a pixel's samples in
+    sample order: 8 spp in waves of 1, 2 or 4 spp give the very same image."""
+    scene = load_small("cbox-fog", 16, 16)
+    images = []
+    for spp_per_wave in (1, 2, 4):
+        method = PathTracing(scene, seed=5, threads=2, params={"spp_per_wave": spp_per_wave})
+        for i in range(8 // spp_per_wave):
+            method.run_iteration(i)
+        images.append(method.image())
+    assert np.array_equal(images[0], images[1]) and np.array_equal(images[0], images[2])
+
+
 def test_other_seed_other_image():
     scene = load_small("cbox-fog", 16, 16)
     assert not np.array_equal(_render(scene, 1, 1, seed=1), _render(scene, 1, 1, seed=2))
