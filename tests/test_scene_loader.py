@@ -152,9 +152,20 @@ def test_nesting_too_deep_for_the_yaml_reader(tmp_path):
     # An override says why too, and shows only the start of its value.
     with pytest.raises(PgiError) as e:
         load_scene(write(tmp_path, BASE), ["film.width=" + "[" * 5000 + "]" * 5000])
+    shown = "'" + "[" * 36 + "..."
     assert str(e.value) == (
-        f"override 'film.width': value {'[' * 37 + '...'!r} is not valid YAML (nested too deeply)"
+        f"override 'film.width': value {shown} is not valid YAML (nested too deeply)"
     )
+
+
+@pytest.mark.parametrize(
+    "value,why",
+    [("{[1]: 2}", "found unhashable key"), ("{a: 1, a: 2}", "duplicate key 'a'")],
+)
+def test_override_values_yaml_refuses_say_why(tmp_path, value, why):
+    with pytest.raises(PgiError) as e:
+        load_scene(write(tmp_path, BASE), [f"film.width={value}"])
+    assert str(e.value) == f"override 'film.width': value {value!r} is not valid YAML ({why})"
 
 
 def test_mesh_file_loads_through_mitsuba(tmp_path):

@@ -178,17 +178,18 @@ def test_residual_needs_fewer_lookups_and_less_variance_than_ratio():
     """With a density floor (as in fog), the per-cell control takes most of the extinction."""
     grid = GridRef(smooth_density((12, 10, 14), seed=8) + 1.0, affine((2.0, 1.0, 1.5)), 1.0)
     o, d = world(grid, "diagonal")
-    batches = 20  # lookups are only counted per call: compare the means of 20 calls each
-    counts = {}
-    for est in ("ratio", "residual"):
-        counts[est] = [estimate(grid, est, o, d, n=1000, seed=100 * b)[1] for b in range(batches)]
-    welch = sps.ttest_ind(counts["residual"], counts["ratio"], equal_var=False, alternative="less")
-    assert welch.pvalue < LEVEL, counts
-    t_ratio, _ = estimate(grid, "ratio", o, d)
-    t_res, _ = estimate(grid, "residual", o, d)
-    # One-sided F-test: the residual estimator's variance is smaller.
-    f = t_ratio.var(ddof=1) / t_res.var(ddof=1)
-    assert sps.f.sf(f, len(t_ratio) - 1, len(t_res) - 1) < LEVEL, (t_ratio.var(), t_res.var())
+    # Lookups are counted per call: 20 calls of 1000 rays each, independent seeds per
+    # estimator. One-sided Welch tests on the per-call means of the lookups and on the
+    # per-call variances of the estimates (means of 1000 terms: near normal, whereas the
+    # estimates themselves are far from normal, which rules out an F-test).
+    lookups, variances = {}, {}
+    for est, offset in (("ratio", 0), ("residual", 1)):
+        calls = [estimate(grid, est, o, d, n=1000, seed=2 * b + offset) for b in range(20)]
+        lookups[est] = [k for _, k in calls]
+        variances[est] = [t.var(ddof=1) for t, _ in calls]
+    for what in (lookups, variances):
+        welch = sps.ttest_ind(what["residual"], what["ratio"], equal_var=False, alternative="less")
+        assert welch.pvalue < LEVEL, what
 
 
 def test_residual_is_exact_and_free_in_constant_cells():

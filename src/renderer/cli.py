@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 
 from . import __version__
-from .errors import PgiError
+from .errors import PgiError, shorten_repr
 
 
 def _floats(text: str) -> list[float]:
@@ -52,7 +52,7 @@ def _split_sets(items: list[str], command: str = "render") -> tuple[list[str], d
     overrides, params = [], {}
     for item in items:
         if "=" not in item:
-            raise PgiError(f"--set {item!r}: expected key=value")
+            raise PgiError(f"--set {shorten_repr(item)}: expected key=value")
         key, value = item.split("=", 1)
         if key.startswith("method.") and command != "render":
             raise PgiError(f"--set {key}: method parameters apply to `pgi render` only")

@@ -15,14 +15,15 @@ import hashlib
 import json
 import os
 import re
-from collections.abc import Iterable, Sequence
+from collections.abc import Hashable, Iterable, Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
 import numpy as np
 import yaml
 
-from renderer.errors import PgiError
+from renderer.errors import PgiError, shorten
+from renderer.errors import shorten_repr as _describe
 from renderer.ranges import integer_problem, number_problem
 from renderer.scene import primitives
 from renderer.scene import transform as xf
@@ -98,6 +99,10 @@ class _UniqueKeyLoader(yaml.SafeLoader):
         seen = set()
         for key_node, _ in node.value:
             key = self.construct_object(key_node, deep=deep)
+            if not isinstance(key, Hashable):  # e.g. {[1]: 2}: the set below would raise
+                raise yaml.constructor.ConstructorError(
+                    None, None, "found unhashable key", key_node.start_mark
+                )
             if key in seen:
                 raise yaml.constructor.ConstructorError(
                     None, None, f"duplicate key {key!r}", key_node.start_mark
@@ -133,10 +138,10 @@ def parse_yaml_value(text: str, where: str) -> Any:
     try:
         return _load_yaml(text)
     except yaml.YAMLError as e:
-        shown = text if len(text) <= 40 else text[:37] + "..."
         why = getattr(e, "problem", None)
         raise PgiError(
-            f"{where}: value {shown!r} is not valid YAML" + (f" ({why})" if why else "")
+            f"{where}: value {_describe(text)} is not valid YAML"
+            + (f" ({shorten(why, 60)})" if why else "")
         ) from None
 
 
@@ -271,14 +276,14 @@ def _apply_override(doc: dict, text: str, origins: _Origins) -> None:
     key, sep, raw = text.partition("=")
     key = key.strip()
     if not sep or not _OVERRIDE_PATH.fullmatch(key):
-        raise PgiError(f"override {text!r}: expected key.path=value, e.g. film.width=64")
+        raise PgiError(f"override {_describe(text)}: expected key.path=value, e.g. film.width=64")
     tokens: list[str | int] = [
         int(m.group(2)) if m.group(2) else m.group(1)
         for m in re.finditer(rf"({_KEY})|\[(\d+)\]", key)
     ]
     if tokens[0] == "include":
         raise PgiError(
-            f"override {text!r}: includes are merged before overrides apply; "
+            f"override {_describe(text)}: includes are merged before overrides apply; "
             "name the file in the scene's `include` instead"
         )
     value = parse_yaml_value(raw, f"override {key!r}")
@@ -292,7 +297,7 @@ def _apply_override(doc: dict, text: str, origins: _Origins) -> None:
             elif n == 1 and tokens[0] in _NAMED_TABLES and tok not in node:
                 known = ", ".join(map(str, node)) or "none"
                 raise PgiError(
-                    f"override {text!r}: the scene has no {tokens[0]} entry {tok!r} "
+                    f"override {_describe(text)}: the scene has no {tokens[0]} entry {tok!r} "
                     f"(it has: {known})"
                 )
             else:
@@ -306,17 +311,12 @@ def _apply_override(doc: dict, text: str, origins: _Origins) -> None:
                 node = node[tok]
         else:
             missing = format_path(tokens[: n + 1])
-            raise PgiError(f"override {text!r}: {missing} does not exist in the scene")
+            raise PgiError(f"override {_describe(text)}: {missing} does not exist in the scene")
     for path in [*created, tuple(tokens)]:
-        origins.add(path, origins.main, path, f" (override {text!r})")
+        origins.add(path, origins.main, path, f" (override {_describe(text)})")
 
 
 # --------------------------------------------------------------------------- validation
-
-
-def _describe(v: Any) -> str:
-    r = repr(v)
-    return r if len(r) <= 40 else r[:37] + "..."
 
 
 class _Validator:
@@ -346,7 +346,8 @@ class _Validator:
         """The ``type`` of a mapping, one of ``choices`` (YAML null reads as "null")."""
         if not isinstance(d, dict):
             self.fail(
-                path, f"expected a mapping with a type ({', '.join(choices)}), got {_describe(d)}"
+                path,
+                f"expected a mapping with a type ({', '.join(choices)}), got {_describe(d)}",
             )
         if "type" not in d:
             self.fail(path + ("type",), f"missing required key (one of: {', '.join(choices)})")
@@ -403,7 +404,8 @@ class _Validator:
         if isinstance(v, list):
             if len(v) != 3:
                 self.fail(
-                    path, f"expected a number or a list of 3 numbers [r, g, b], got {_describe(v)}"
+                    path,
+                    f"expected a number or a list of 3 numbers [r, g, b], got {_describe(v)}",
                 )
             r, g, b = (self.number(x, path + (i,), lo=0, hi=hi) for i, x in enumerate(v))
             return (r, g, b)
