@@ -157,6 +157,15 @@ def check_transmittance(grid: GridRef, estimator: str, o, d, tmax: float, n: int
         assert stats.z_p_value(mean, exact, se) >= LEVEL, (mean, se, exact, n)
 
 
+def check_whole_ray(grid: GridRef, estimator: str, o, d, tau: float, truth: float,
+                    exact: float | None = None) -> None:  # fmt: skip
+    """check_transmittance over the whole ray, with samples sized by the exact transmittance
+    (`exact`, default `truth`) to catch a 25 % error in its rarer outcome."""
+    exact = truth if exact is None else exact
+    n = samples_to_detect(min(exact, 1 - exact), sample_cap(tau))
+    check_transmittance(grid, estimator, o, d, np.inf, n, 1000 * THICKNESS.index(tau), truth)
+
+
 # --------------------------------------------------------------------------- optical thickness
 
 
@@ -170,18 +179,17 @@ def test_transmittance_across_the_medium(estimator, tau, kind):
     cost caps the samples at 1e6: errors of about a factor 2 are caught there). Beyond, the
     truth is exp(-100) or less and Markov's inequality bounds the sum of the estimates."""
     grid, o, d = make_grid(kind, tau)
-    exact = math.exp(-grid.optical_depth(o, d, np.inf)[0])
+    depth = grid.optical_depth(o, d, np.inf)[0]
     if tau in OPAQUE:
         n = 2000
         t, _ = transmittance(grid, estimator, o, d, n, seed=17)
         assert np.all(np.isfinite(t)) and np.all((t >= 0) & (t <= 1))
         # P(sum >= n E[T] / LEVEL) <= LEVEL for any non-negative estimator of mean E[T]; in
         # logs, since E[T] = exp(-1000) underflows.
-        log_bound = math.log(n / LEVEL) - grid.optical_depth(o, d, np.inf)[0]
+        log_bound = math.log(n / LEVEL) - depth
         assert t.sum() == 0 or math.log(t.sum()) <= log_bound, (t.sum(), log_bound)
         return
-    n = samples_to_detect(min(exact, 1 - exact), sample_cap(tau))
-    check_transmittance(grid, estimator, o, d, np.inf, n, 1000 * THICKNESS.index(tau), exact)
+    check_whole_ray(grid, estimator, o, d, tau, math.exp(-depth))
 
 
 @pytest.mark.parametrize("tau", [1e-2, 1.0])
@@ -191,11 +199,9 @@ def test_transmittance_tests_catch_a_25_percent_error(estimator, tau):
     outcome (a collision at tau = 0.01, passing through at tau = 1), the same test fails."""
     grid, o, d = make_grid("lumpy", tau)
     depth = grid.optical_depth(o, d, np.inf)[0]
-    exact = math.exp(-depth)
-    wrong = math.exp(-1.25 * depth) if exact > 0.5 else 1.25 * exact
-    n = samples_to_detect(min(exact, 1 - exact), sample_cap(tau))
+    wrong = math.exp(-1.25 * depth) if depth < math.log(2) else 1.25 * math.exp(-depth)
     with pytest.raises(AssertionError):
-        check_transmittance(grid, estimator, o, d, np.inf, n, 1000 * THICKNESS.index(tau), wrong)
+        check_whole_ray(grid, estimator, o, d, tau, wrong, exact=math.exp(-depth))
 
 
 @pytest.mark.parametrize("kind", GRIDS)
