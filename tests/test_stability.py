@@ -302,6 +302,34 @@ def test_extreme_hg_pdf_equals_eval(g):
     )
 
 
+NEAR_ONE = [1 - 1e-10, 1 - 2**-52]  # |g| the loader accepts, where 1 + g^2 - 2 g mu cancels
+
+
+@pytest.mark.parametrize("g", [s * g for g in NEAR_ONE for s in (1, -1)])
+def test_hg_within_rounding_of_one_stays_finite(g):
+    """In the peak of HG with |g| this close to 1, 1 + g^2 - 2 g cos(theta) rounds to 0 unless
+    written as a sum of non-negative terms: the pdf was infinite and the MIS weights NaN."""
+    wo = np.array([0.0, 0.0, -1.0])
+    ahead = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]])  # -wo and wo: one is the peak
+    values = _core.eval_phase(1, g, tuple(wo), ahead)
+    peak = (1 + abs(g)) / (4 * np.pi * (1 - abs(g)) ** 2)
+    assert np.all(np.isfinite(values)) and values.max() == pytest.approx(peak, rel=1e-6)
+    assert values.min() > 0
+    wi, pdf = _core.sample_phase(1, g, tuple(wo), np.random.default_rng(2).random((20_000, 2)))
+    assert np.all(np.isfinite(pdf)) and np.all(pdf > 0) and np.all(np.isfinite(wi))
+    # Nearly every sample lies in the peak, on the side the sign of g says.
+    assert np.mean(np.sign(g) * (wi @ -wo) > 1 - 1e-6) > 0.999
+
+
+def test_hg_within_rounding_of_one_renders_finite():
+    """pt through fog whose phase function is this peaked counts no non-finite sample."""
+    scene = load_small("fog-step", 8, 8, (f"media.fog.phase={{type: hg, g: {NEAR_ONE[0]!r}}}",))
+    method = PathTracing(scene, seed=3, threads=2, params={"spp_per_wave": 64})
+    method.run_iteration(0)
+    assert method.stats()["nonfinite"] == 0
+    assert np.all(np.isfinite(method.image()))
+
+
 @pytest.mark.parametrize("g", [-0.99, 0.99])
 def test_extreme_hg_renders_match_mitsuba(g):
     """2x2-pixel blocks agree with Mitsuba (chi-square and largest |z| at LEVEL). A firefly

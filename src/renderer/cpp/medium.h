@@ -192,7 +192,7 @@ void tentative_collisions(const Medium &m, const Vec3 &o, const Vec3 &d, double 
         if (maj <= 0) return true;
         double t = t0;
         while (true) {
-            t -= std::log1p(-rng.next()) / maj;
+            t += exponential_depth(rng.next()) / maj;
             if (t >= t1) return true;
             if (!visit(t, maj)) return false;
         }
@@ -253,7 +253,7 @@ inline FreeFlight sample_free_flight(const Medium &m, const Vec3 &o, const Vec3 
     if (m.type == MediumType::Homogeneous && m.gray()) {
         // Exact distance sampling: the weight is the albedo on collision, 1 on passing.
         double sig = m.sigma_t.x;
-        double t = sig > 0 ? -std::log1p(-rng.next()) / sig : kInf;
+        double t = sig > 0 ? exponential_depth(rng.next()) / sig : kInf;
         if (t < tmax) {
             f.scattered = true;
             f.t = t;
@@ -265,7 +265,7 @@ inline FreeFlight sample_free_flight(const Medium &m, const Vec3 &o, const Vec3 
         double uc = rng.next(), ut = rng.next();
         int channel = std::min(2, int(uc * 3));
         double sig = m.sigma_t[channel];
-        double t = sig > 0 ? -std::log1p(-ut) / sig : kInf;
+        double t = sig > 0 ? exponential_depth(ut) / sig : kInf;
         if (t < tmax) {
             RGB tr = beer_lambert(m.sigma_t, t);
             double pdf = mean(m.sigma_t * tr);
@@ -281,7 +281,7 @@ inline FreeFlight sample_free_flight(const Medium &m, const Vec3 &o, const Vec3 
     }
     ++stats.segments;
     if (m.estimator == Estimator::RayMarch) {
-        double target = -std::log1p(-rng.next()), tau = 0;
+        double target = exponential_depth(rng.next()), tau = 0;
         ray_march(m, o, d, tmax, rng, stats, [&](double s, double len, double sigma) {
             if (tau + sigma * len < target) {
                 tau += sigma * len;
@@ -367,7 +367,7 @@ inline RGB transmittance(const Medium &m, const Vec3 &o, const Vec3 &d, double t
                 if (!roulette_transmittance(tr, rng)) return false;
                 double t = t0;
                 while (true) {
-                    t -= std::log1p(-rng.next()) / residual;
+                    t += exponential_depth(rng.next()) / residual;
                     if (t >= t1) return true;
                     // (sigma - minor) / residual is the residual's null-collision ratio.
                     tr *= std::max(0.0, maj - grid_sigma_t(m, o + d * t, stats)) / residual;

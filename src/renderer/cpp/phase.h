@@ -75,9 +75,12 @@ struct Phase {
 // Below this |g| the HG inversion loses precision; isotropic is exact enough.
 constexpr double kHgIsotropicLimit = 1e-4;
 
+// 1 + g^2 - 2 g cos(theta) as a sum of two non-negative terms, (1 - g)^2 + 2 g (1 - cos)
+// for g >= 0 and (1 + g)^2 - 2 g (1 + cos) for g < 0: the plain form cancels to 0 in the
+// peak for |g| within ~1e-10 of 1 (an infinite pdf, then NaN MIS weights).
 inline double hg_value(double cos_theta, double g) {
-    double denom = 1 + g * g - 2 * g * cos_theta;
-    return kInv4Pi * (1 - g * g) / (denom * std::sqrt(denom));
+    double denom = g >= 0 ? (1 - g) * (1 - g) + 2 * g * (1 - cos_theta) : (1 + g) * (1 + g) - 2 * g * (1 + cos_theta);
+    return kInv4Pi * (1 - g) * (1 + g) / (denom * std::sqrt(denom));
 }
 
 inline double rayleigh_value(double cos_theta) { return 3.0 / (16.0 * kPi) * (1 + cos_theta * cos_theta); }
