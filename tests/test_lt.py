@@ -28,7 +28,7 @@ RES = 32
 # pt's and Mitsuba's per-pixel estimates are heavy-tailed at a few dozen spp per image (rare
 # paths that find the light after scattering: medians well below means), so 32 images
 # underestimate their variance and pixel z-scores overshoot (max |z| 6.7 against pt at 16 spp);
-# 128 spp per image tames the tails (4.5 and 4.2 against a limit of 5.1 at alpha 1e-3).
+# 128 spp per image tames the tails (4.5 and 4.2, where the limit at ALPHA = 1e-4 is 5.5).
 CASES = [
     ("cbox", 32, 1 << 15, 32, 16, 32, 32),
     ("cbox-fog", 32, 1 << 15, 32, 128, 32, 128),

@@ -4,10 +4,12 @@ Tolerances come from measured variance only: each renderer gives K independent i
 their means are compared with two-sample z-scores (see parity.py). The test fails with
 probability about ALPHA = 1e-4 per check when both renderers are right.
 
-Power (measured at these sample counts): a 2 % bias in the image mean fails the mean check
-on every case but the two max-depth variants (|z| about 3.1 there, limit 4.15), a 3 % bias on
-every case (test_a_three_percent_bias_fails); the 4x4 block chi-square catches a uniform 2 %
-bias on every case but cbox-fog-depth-3, and 1 % on three of the seven.
+Power (measured at these sample counts, our images scaled by 0.99, 0.98, 0.97): the image
+mean check fails a 2 % bias on every case but the two max-depth variants, and 3 % on every
+case (test_a_three_percent_bias_fails); the 4x4 block check fails 1 % on cbox and
+cbox-fog-depth-2, 2 % on all but cbox-fog, cbox-glass and cbox-fog-depth-3, and 3 % on all but
+cbox-fog-depth-3 (p = 0.01 there). Its chi-square takes each block's colour as one vector
+(parity.vector_chi2): a scale error also shows in the colour directions, whose noise is small.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ from __future__ import annotations
 import pytest
 
 from conftest import load_small
-from parity import ALPHA, Estimate, agreement, mitsuba, ours
+from parity import ALPHA, Estimate, agreement, mean_agrees, mitsuba, ours
 from renderer.methods.pt import PathTracing
 
 RES = 32
@@ -64,8 +66,8 @@ def estimates(request):
 
 def test_mean_radiance_matches_mitsuba(estimates):
     name, a, b = estimates
-    result = agreement(a.image_mean(), b.image_mean(), ALPHA)
-    assert result.max_abs_z < result.z_limit, f"{name}: {result}"
+    agrees, result = mean_agrees(a, b)
+    assert agrees, f"{name}: {result}"
 
 
 def test_blocks_match_mitsuba(estimates):
@@ -84,5 +86,5 @@ def test_pixels_match_mitsuba(estimates):
 def test_a_three_percent_bias_fails(estimates):
     """The checks above can fail: our images scaled by 0.97 fail the image-mean check."""
     name, a, b = estimates
-    result = agreement(Estimate(a.samples * 0.97).image_mean(), b.image_mean(), ALPHA)
-    assert result.max_abs_z > result.z_limit, f"{name}: a 3 % bias passed: {result}"
+    agrees, result = mean_agrees(Estimate(a.samples * 0.97), b)
+    assert not agrees, f"{name}: a 3 % bias passed: {result}"

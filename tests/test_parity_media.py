@@ -6,6 +6,10 @@ ratio and residual must agree with Mitsuba's volpath within measured noise (two-
 of 4x4-block means and of the image mean, Bonferroni/chi-square as tests/parity.py). The biased
 ray-marching estimator is not asserted here; bench/bench_media.py measures its bias. juice has
 a homogeneous medium only (closed forms), so one estimator covers it.
+
+Power: the sample counts are sized so that our images scaled by 0.97 fail the image-mean
+check in every case (test_*_bias_fails), except the point light inside a grid, where paths
+scattering next to the light make the estimates heavy-tailed: 0.95 fails there.
 """
 
 from __future__ import annotations
@@ -14,16 +18,20 @@ import pytest
 import yaml
 
 from conftest import SCENES, load_small
-from parity import ALPHA, agreement, mitsuba, ours
+from parity import ALPHA, Estimate, agreement, mean_agrees, mitsuba, ours
 from renderer.methods.pt import PathTracing
 from renderer.scene import load_scene
 
 RES = 16
 # Independent images x spp each, for both renderers. The per-image spp must be high enough for
-# the per-image means to be near normal (the z-scores estimate the variance from 32 images):
-# juice's caustic paths through the liquid are heavy-tailed and need more.
+# the per-image means to be near normal (the z-scores estimate the variance from 32 images),
+# and the total high enough for power: with z_limit the Bonferroni bound, a relative standard
+# error s of the difference of image means detects a bias b with power ~0.99 when
+# (z_limit + 2.33) s <= b. Measured s at 32 spp: smoke 0.74 %, fog-perlin 1.37 %,
+# fog-step 1.28-1.64 %, juice (64 spp) 0.91 %, nested juice in fog (64 spp) 0.99 %,
+# camera in grid 0.61 %, point light in grid 2.9 %.
 IMAGES = 32
-SPP = {"smoke": 32, "fog-perlin": 32, "fog-step": 32, "juice": 64}
+SPP = {"smoke": 128, "fog-perlin": 320, "fog-step": 320, "juice": 320}
 CASES = [
     (scene, est)
     for scene in ("smoke", "fog-perlin", "fog-step")
@@ -45,8 +53,15 @@ def estimates(request):
 
 def test_mean_radiance_matches_mitsuba(estimates):
     name, a, b = estimates
-    result = agreement(a.image_mean(), b.image_mean(), ALPHA)
-    assert result.max_abs_z < result.z_limit, f"{name}: {result}"
+    agrees, result = mean_agrees(a, b)
+    assert agrees, f"{name}: {result}"
+
+
+def test_a_three_percent_bias_fails(estimates):
+    """The check above has power: our images scaled by 0.97 fail it."""
+    name, a, b = estimates
+    agrees, result = mean_agrees(Estimate(a.samples * 0.97), b)
+    assert not agrees, f"{name}: a 3 % bias passed: {result}"
 
 
 def test_blocks_match_mitsuba(estimates):
@@ -79,24 +94,27 @@ NESTED = {
          "transform": [{"scale": [0.22, 0.7, 0.22]}, {"translate": [-0.35, -0.999, 0.55]}]},
     ],
 }  # fmt: skip
+# name: (base scene or None for NESTED, overrides, spp per image, the bias that must fail)
 CONFIGS = {
-    "nested-juice-in-fog": (None, (), 64),
-    "camera-in-grid": ("fog-step", ("camera.origin=[0.2, 0.1, 0.8]", "camera.medium=fog"), 32),
+    "nested-juice-in-fog": (None, (), 384, 0.03),
+    "camera-in-grid": ("fog-step", ("camera.origin=[0.2, 0.1, 0.8]", "camera.medium=fog"), 96,
+                       0.03),
     "point-light-in-grid": (
         "fog-step",
         (
             "shapes[7].emission=0",
             "lights=[{type: point, position: [0.3, 0.5, 0.2], intensity: 3}]",
         ),
-        32,
+        640,
+        0.05,
     ),
-}
+}  # fmt: skip
 
 
 @pytest.fixture(scope="module", params=list(CONFIGS))
 def config_estimates(request, tmp_path_factory):
     name = request.param
-    base, overrides, spp = CONFIGS[name]
+    base, overrides, spp, _ = CONFIGS[name]
     if base is None:
         path = tmp_path_factory.mktemp(name) / "scene.yaml"
         path.write_text(yaml.safe_dump(NESTED))
@@ -108,7 +126,15 @@ def config_estimates(request, tmp_path_factory):
 
 def test_configuration_matches_mitsuba(config_estimates):
     name, a, b = config_estimates
-    result = agreement(a.image_mean(), b.image_mean(), ALPHA)
-    assert result.max_abs_z < result.z_limit, f"{name}: {result}"
+    agrees, result = mean_agrees(a, b)
+    assert agrees, f"{name}: {result}"
     result = agreement(a.blocks(4), b.blocks(4), ALPHA)
     assert result.p_value > ALPHA and result.max_abs_z < result.z_limit, f"{name}: {result}"
+
+
+def test_configuration_bias_fails(config_estimates):
+    """The mean check has power: our images scaled down by the configuration's bias fail it."""
+    name, a, b = config_estimates
+    bias = CONFIGS[name][3]
+    agrees, result = mean_agrees(Estimate(a.samples * (1 - bias)), b)
+    assert not agrees, f"{name}: a {bias:.0%} bias passed: {result}"
