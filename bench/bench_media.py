@@ -33,7 +33,7 @@ import numpy as np
 
 import renderer.methods.pt as pt_module
 from renderer import _core
-from renderer.engine import MAJORANT_CELL, build_native_scene
+from renderer.engine import MAJORANT_CELL, build_native_scene, march_step
 from renderer.methods.mitsuba import MitsubaVolpath
 from renderer.methods.pt import PathTracing
 from renderer.scene import load_scene
@@ -76,14 +76,12 @@ def shadow_rays(scene, n_rays: int, seed: int) -> list[tuple[np.ndarray, np.ndar
 def shadow_table(name: str, cell: int, n_rays: int = 200, samples: int = 256) -> list[dict]:
     """Rows per estimator for majorant cells of ``cell`` voxels (0: one global majorant)."""
     scene = load_scene(name, ["film.width=8", "film.height=8"])
-    grid = next(m for m in scene.media.values() if m.type == "grid")
+    # The core numbers media in the scene's order.
+    medium, grid = next((i, m) for i, m in enumerate(scene.media.values()) if m.type == "grid")
     native = build_native_scene(scene, majorant_cell=cell or max(grid.density.shape))
-    core, medium = native.core, 0
+    core = native.core
     rays = shadow_rays(scene, n_rays, seed=1)
-    step = 0.5 * float(
-        (np.linalg.norm(scene.media[next(iter(scene.media))].to_world[:3, :3], axis=0)
-         / np.array(scene.media[next(iter(scene.media))].density.shape)).min()
-    )  # fmt: skip
+    step = march_step(grid, 0.0)  # half the smallest voxel
     truth = []
     _core.configure_medium(core, medium, ESTIMATORS["residual"], 0.0)
     for i, (o, d, dist) in enumerate(rays):
