@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from conftest import SCENES
 from renderer.errors import PgiError
@@ -437,3 +438,42 @@ def test_fingerprints_cover_the_code_each_output_runs():
     r = pgi("fingerprint")
     assert r.returncode == 0, r.stderr
     assert json.loads(r.stdout) == fingerprint.fingerprints()
+
+
+def test_outputs_never_overwrite_a_file_the_scene_reads(tmp_path):
+    """`-o scene.exr` next to a scene file `scene.json` would have replaced it by the sidecar."""
+    scene = tmp_path / "shot.json"
+    scene.write_text(json.dumps(yaml.safe_load((SCENES / "cbox" / "scene.yaml").read_text())
+                                | {"include": [str(SCENES / "cbox" / "box.yaml")]}))  # fmt: skip
+    before = scene.read_bytes()
+    for args in (["render", str(scene), "--method", "pt", "--spp", "1"],
+                 ["reference", str(scene), "--spp", "1"]):  # fmt: skip
+        r = pgi(*args, *small(), "-o", str(tmp_path / "shot.exr"))
+        assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+        assert "which the scene reads" in r.stderr, r.stderr
+    assert scene.read_bytes() == before and not (tmp_path / "shot.exr").exists()
+
+
+def test_radiance_beyond_float32_is_a_clear_error(tmp_path):
+    """A scene within every limit can still be too bright for a float EXR (a point light of
+    intensity 1e30 a hair from a wall): that is the user's, not a bug; nothing is written."""
+    from renderer.imageio import write_exr
+
+    out = tmp_path / "hot.exr"
+    image = np.ones((2, 2, 3))
+    image[0, 0] = 1e44
+    with pytest.raises(PgiError, match=r"reach 1e\+44, beyond what a float EXR holds"):
+        write_exr(out, image)
+    assert list(tmp_path.iterdir()) == []
+    image[0, 0] = np.nan  # a method's bug, not the scene's: not a user error
+    with pytest.raises(ValueError, match="non-finite"):
+        write_exr(out, image)
+
+
+def test_an_unread_setting_is_refused_in_any_spelling(tmp_path):
+    out = tmp_path / "m.exr"
+    for kv in ("integrator.estimator =delta", "integrator={estimator: delta}"):
+        r = pgi("render", "smoke", "--method", "mitsuba", "--spp", "1", *small("--set", kv),
+                "-o", str(out))  # fmt: skip
+        assert r.returncode == 2 and "does not read this setting" in r.stderr, r.stderr
+    assert not out.exists()

@@ -19,8 +19,12 @@ BAD = [
     ("lt", "light_paths", [1, 2], INT_1),
     ("lt", "max_records", -1, INT_1),
     ("pm", "photons", True, INT_1),
-    ("pm", "radius", float("nan"), "a number > 0"),
-    ("pm", "radius_scale", "big", "a number > 0"),
+    ("pm", "radius", float("nan"), "a number >= "),  # 1e-9 of the scene's size
+    ("pm", "radius", 1e-160, "a number >= "),  # 1 / (pi r^2) overflowed into NaN samples
+    ("pm", "radius_scale", "big", "a number >= 1e-09"),
+    ("pm", "radius_scale", 1e-160, "a number >= 1e-09"),
+    ("ppb", "radius", 1e-160, "a number >= 1e-09"),
+    ("ppb", "surface_radius", 1e-160, "0 (path-traced surfaces) or >= 1e-09"),
     ("sppm", "alpha", 1.0, "a number > 0 and < 1"),
     ("sppm", "volume_alpha", None, "a number > 0 and < 1"),
     ("ppb", "light_paths", [1, 2], INT_1),
@@ -36,7 +40,7 @@ def test_bad_method_parameter_is_a_clear_error(method, key, value, expected):
     with pytest.raises(PgiError) as info:
         get_method(method)(load_small("cbox", 4, 4), seed=0, threads=1, params={key: value})
     msg = str(info.value)
-    assert msg.startswith(f"method {method}: {key} must be {expected}, got "), msg
+    assert msg.startswith(f"method {method}: {key} must be {expected}") and ", got " in msg, msg
 
 
 @pytest.mark.parametrize(

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import re
+import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
 
+from conftest import SCENES
 from renderer.errors import PgiError
 from renderer.scene import load_scene, primitives
 from renderer.scene.loader import find_scene_file, scene_sources
@@ -507,3 +509,113 @@ def test_scene_sources_are_every_file_a_scene_reads(tmp_path: Path) -> None:
     for broken in ("include: [\n", "include: 3\n", "include: {a: b}\n"):  # left to the loader
         (tmp_path / "s" / "scene.yaml").write_text(broken)
         assert scene_sources(tmp_path / "s") == [tmp_path / "s" / "scene.yaml"]
+
+
+# --------------------------------------------------------------------------- found by review
+
+
+def test_yaml_merge_keys_are_read(tmp_path):
+    """`<<: *anchor` merges a mapping; keys given beside it win, as YAML means."""
+    text = yaml.safe_dump(BASE).replace(
+        "materials:\n  white:\n", "materials:\n  grey: &grey\n    type: diffuse\n    "
+        "reflectance: 0.2\n  white:\n    <<: *grey\n"
+    )  # fmt: skip
+    text = text.replace("    reflectance: 0.5\n    type: diffuse\n", "    reflectance: 0.5\n")
+    scene = load_scene(write(tmp_path, text))
+    assert scene.materials["white"].reflectance == (0.5,) * 3
+    assert scene.materials["white"].type == "diffuse"
+    # Duplicates among the keys written out are still refused.
+    twice = text.replace("    reflectance: 0.5\n", "    reflectance: 0.5\n    reflectance: 0.6\n")
+    with pytest.raises(PgiError, match="duplicate key 'reflectance'"):
+        load_scene(write(tmp_path, twice, "twice.yaml"))
+
+
+@pytest.mark.parametrize("key", ["max_depth", "rr_depth"])
+def test_depths_fit_32_bit_ints(tmp_path, key):
+    expect_error(write(tmp_path, BASE), f"integrator.{key}", "<= 2147483647",
+                 [f"integrator.{key}=2147483648"])  # fmt: skip
+
+
+def test_vectors_too_short_to_normalise_are_refused(tmp_path):
+    path = write(tmp_path, BASE)
+    sun = "lights=[{type: directional, direction: [0, 0, -1.0e-200], irradiance: 1}]"
+    expect_error(path, "lights[0].direction", "non-zero vector", [sun])
+    expect_error(path, "camera.target", "view direction is undefined",
+                 ["camera.origin=[0, 0, 0]", "camera.target=[0, 0, -1.0e-200]"])  # fmt: skip
+    turn = "shapes[0].transform=[{rotate: {axis: [1.0e-200, 1.0e-200, 0], angle: 30}}]"
+    expect_error(path, "shapes[0].transform[0].rotate.axis", "non-zero vector", [turn])
+    # Short but normalisable: a camera 1e-90 from its target still loads.
+    load_scene(path, ["camera.origin=[0, 0, 1.0e-90]", "camera.target=[0, 0, 0]"])
+
+
+def test_mesh_files_that_hold_no_usable_triangles(tmp_path):
+    header = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+    header += "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+    (tmp_path / "oob.ply").write_text(header + "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n")
+    (tmp_path / "words.obj").write_text("hello\n")
+    (tmp_path / "noise.ply").write_bytes(np.random.default_rng(0).bytes(300))
+    cases = [("oob.ply", "refers to vertex 7, but there are 3"), ("words.obj", "no triangles"),
+             ("noise.ply", "cannot load")]  # fmt: skip
+    for name, pattern in cases:
+        doc = edit(shapes=[*BASE["shapes"], {"type": "mesh", "file": name, "material": "white"}])
+        expect_error(write(tmp_path, doc, f"{name}.yaml"), "shapes[2].file", pattern)
+
+
+@pytest.mark.parametrize(
+    ("content", "pattern"),
+    [
+        (np.array(["a", "b"]), "expected numbers"),
+        (np.array([1 + 2j, 3]), "expected numbers"),
+        (np.array([True, False]), "expected numbers"),
+        (b"", "cannot read"),
+    ],
+)
+def test_tabulated_phase_files_of_the_wrong_kind(tmp_path, content, pattern):
+    file = tmp_path / "table.npy"
+    if isinstance(content, bytes):
+        file.write_bytes(content)
+    else:
+        np.save(file, content)
+    fog = "media.fog={type: homogeneous, sigma_t: 1, albedo: 0.5, "
+    fog += "phase: {type: tabulated, file: table.npy}}"
+    expect_error(write(tmp_path, BASE), "media.fog.phase.file", pattern, [fog])
+
+
+@pytest.mark.parametrize("value", [1e-50, 1e308])
+def test_tabulated_phase_values_are_scaled_to_a_peak_of_one(tmp_path, value):
+    """Only the shape matters: tiny values must not vanish in Mitsuba's float32, huge ones
+    must not overflow their sum."""
+    fog = "media.fog={type: homogeneous, sigma_t: 1, albedo: 0.5, "
+    fog += f"phase: {{type: tabulated, values: [{value!r}, {value!r}, {value / 2!r}]}}}}"
+    phase = load_scene(write(tmp_path, BASE), [fog]).media["fog"].phase
+    np.testing.assert_allclose(phase.values, [1, 1, 0.5])
+
+
+def test_grid_size_does_not_make_it_singular(tmp_path):
+    tiny = grid_scene(tmp_path, np.ones((2, 2, 2)), transform=[{"scale": 1e-5}])
+    assert load_scene(tiny).media["smoke"].to_world[0, 0] == pytest.approx(1e-5)
+    flat = grid_scene(tmp_path, np.ones((2, 2, 2)), transform=[{"scale": [1, 1, 0]}])
+    expect_error(flat, "media.smoke.transform", "singular")
+
+
+def test_perlin_octaves_beyond_the_lattice_are_refused(tmp_path):
+    noise = {"type": "perlin", "resolution": 4, "octaves": 16, "frequency": 1e4,
+             "lacunarity": 16, "gain": 16}  # fmt: skip
+    doc = edit(media={"fog": {"type": "grid", "density": noise, "albedo": 0.5}})
+    expect_error(write(tmp_path, doc), "media.fog.density", "finest octave")
+    noise |= {"octaves": 2, "offset": 1e300}
+    expect_error(write(tmp_path, doc), "media.fog.density.offset", "<= 1e\\+06")
+
+
+def test_vdb_bbox_beyond_int32_is_refused(tmp_path):
+    shutil.copy(SCENES / "smoke" / "plume.vdb", tmp_path / "p.vdb")
+    box = {"type": "vdb", "file": "p.vdb", "bbox": [[0, 0, 0], [2147483648, 0, 0]]}
+    doc = edit(media={"fog": {"type": "grid", "density": box, "albedo": 0.5}})
+    expect_error(write(tmp_path, doc), "media.fog.density.bbox[1][0]", "<= 2147483647")
+
+
+def test_a_truncated_vdb_is_a_short_error(tmp_path):
+    (tmp_path / "t.vdb").write_bytes((SCENES / "smoke" / "plume.vdb").read_bytes()[:2000])
+    doc = edit(media={"fog": {"type": "grid", "density": "t.vdb", "albedo": 0.5}})
+    msg = expect_error(write(tmp_path, doc), "media.fog.density", "cannot read as an OpenVDB")
+    assert len(msg) < 400

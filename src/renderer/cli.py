@@ -65,6 +65,20 @@ def _split_sets(items: list[str], command: str = "render") -> tuple[list[str], d
     return overrides, params
 
 
+def _refuse_overwriting_the_scene(scene: str, outputs: list[Path]) -> None:
+    """No image or sidecar may replace a file the scene reads (its YAML, meshes, grids)."""
+    from .scene.loader import scene_sources
+
+    try:
+        sources = {p.resolve() for p in scene_sources(scene)}
+    except PgiError:  # no such scene: loading it says so
+        return
+    for out in outputs:
+        for target in (out, out.with_suffix(".json")):
+            if target.resolve() in sources:
+                raise PgiError(f"-o {out}: would overwrite {target}, which the scene reads")
+
+
 def cmd_render(args: argparse.Namespace) -> int:
     from .imageio import check_output_path
     from .methods import check_overrides
@@ -78,6 +92,7 @@ def cmd_render(args: argparse.Namespace) -> int:
                        "share a file name")  # fmt: skip
     for path in snapshot_files:
         check_output_path(path)
+    _refuse_overwriting_the_scene(args.scene, [out, *snapshot_files])
     overrides, params = _split_sets(args.set)
     check_overrides(args.method, overrides)
     scene = load_scene(args.scene, overrides)
@@ -108,6 +123,7 @@ def cmd_reference(args: argparse.Namespace) -> int:
     from .scene import load_scene
 
     out = check_output_path(args.output)
+    _refuse_overwriting_the_scene(args.scene, [out])
     check_threads(args.threads)
     overrides, _ = _split_sets(args.set, "reference")
     check_overrides("mitsuba", overrides)  # the reference is Mitsuba's volpath

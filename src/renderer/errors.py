@@ -12,6 +12,12 @@ def shorten(text: str, limit: int = 40) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
+def one_line(text: str, limit: int = 160) -> str:
+    """A library's message quoted in ours: whitespace runs collapsed, cut to `limit`
+    characters (a corrupt file can make one gigabytes long)."""
+    return shorten(" ".join(text.split()), limit)
+
+
 def shorten_repr(value: Any, limit: int = 40) -> str:
     """The repr of a value quoted in a message, cut to `limit` characters."""
     return shorten(repr(value), limit)

@@ -53,10 +53,17 @@ def write_exr(path: str | Path, image: np.ndarray, metadata: dict | None = None)
     ``metadata`` is stored as a JSON string attribute ``pgi`` in the header.
     """
     path = Path(path)
-    image = np.asarray(image, dtype=np.float32)
+    given = np.asarray(image)
+    with np.errstate(over="ignore"):  # overflow is checked below
+        image = given.astype(np.float32)
     if image.ndim != 3 or image.shape[2] != 3:
         raise ValueError(f"expected an (H, W, 3) image, got shape {image.shape}")
     if not np.all(np.isfinite(image)):
+        if np.all(np.isfinite(given)):  # a scene's radiance, not a bug: say so
+            raise PgiError(
+                f"{path}: pixel values reach {np.abs(given).max():.3g}, beyond what a float "
+                f"EXR holds ({np.finfo(np.float32).max:.3g}); make the lights dimmer"
+            )
         raise ValueError(f"refusing to write non-finite pixels to {path}")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)

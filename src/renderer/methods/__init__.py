@@ -56,10 +56,26 @@ UNREAD_SETTINGS: dict[str, tuple[str, ...]] = {
 
 
 def check_overrides(method_id: str, overrides: list[str] | tuple[str, ...]) -> None:
-    """Refuses `key=value` scene overrides that the method would ignore."""
+    """Refuses `key=value` scene overrides that the method would ignore, also when given
+    as part of a mapping (`integrator={estimator: delta}`)."""
+    from ..scene.loader import parse_yaml_value
+
     for kv in overrides:
-        if kv.split("=", 1)[0] in UNREAD_SETTINGS.get(method_id, ()):
-            raise PgiError(f"--set {kv}: method {method_id} does not read this setting")
+        key, _, raw = kv.partition("=")
+        key = key.strip()
+        for setting in UNREAD_SETTINGS.get(method_id, ()):
+            below = setting[len(key) + 1 :].split(".") if setting.startswith(key + ".") else None
+            if key == setting or (below and _holds(parse_yaml_value(raw, f"--set {key}"), below)):
+                raise PgiError(f"--set {kv}: method {method_id} does not read this setting")
+
+
+def _holds(value: object, keys: list[str]) -> bool:
+    """Whether nested mappings `value` have the key path `keys`."""
+    for k in keys:
+        if not isinstance(value, dict) or k not in value:
+            return False
+        value = value[k]
+    return True
 
 
 def method_ids() -> list[str]:

@@ -10,6 +10,9 @@ from ..errors import PgiError
 from ..ranges import integer_problem, number_problem
 
 INT32_MAX = 2**31 - 1
+# Radii below this fraction of the scene's bounding-sphere radius find no photon, and at
+# ~1e-150 of it 1 / (pi r^2) overflows into non-finite samples.
+MIN_RADIUS_FRACTION = 1e-9
 
 
 def budget_divisor(wanted: int, spp_budget: int | None) -> int:
@@ -31,7 +34,7 @@ class MethodParams:
             )
         self.method, self.params = method, params
 
-    def _fail(self, key: str, expected: str) -> None:
+    def fail(self, key: str, expected: str) -> None:
         raise PgiError(f"method {self.method}: {key} must be {expected}, got {self.params[key]!r}")
 
     def integer(self, key: str, default: int, lo: int | None = None, hi: int = INT32_MAX) -> int:
@@ -40,7 +43,7 @@ class MethodParams:
             return default
         expected = integer_problem(self.params[key], lo, hi)
         if expected:
-            self._fail(key, expected)
+            self.fail(key, expected)
         return self.params[key]
 
     def number(
@@ -57,7 +60,7 @@ class MethodParams:
             return float(default)
         expected = number_problem(self.params[key], lo, hi, lo_open, hi_open)
         if expected:
-            self._fail(key, expected)
+            self.fail(key, expected)
         return float(self.params[key])
 
     def refuse_unused(self, key: str, used: bool, why: str) -> None:

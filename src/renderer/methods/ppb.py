@@ -34,7 +34,7 @@ from ..passes import trace_camera_wave
 from ..scene.model import Scene
 from ..tracer import EmbreeTracer, RayBatch
 from .lightpath import LightPaths
-from .params import MethodParams
+from .params import MIN_RADIUS_FRACTION, MethodParams
 from .schedules import expected_mse_slopes
 
 DEFAULT_LIGHT_PATHS = 1 << 13
@@ -80,13 +80,15 @@ class ProgressivePhotonBeams:
         light_paths = p.integer("light_paths", DEFAULT_LIGHT_PATHS, lo=1)
         spp = p.spp_per_iteration("spp_per_iteration", 1, spp_budget)
         alpha = p.number("alpha", DEFAULT_ALPHA, lo=0, hi=1, lo_open=True)
-        radius = p.number("radius", DEFAULT_RADIUS, lo=0, lo_open=True)
+        radius = p.number("radius", DEFAULT_RADIUS, lo=MIN_RADIUS_FRACTION)
         piece = p.number("piece_length", DEFAULT_PIECE_LENGTH, lo=0, lo_open=True)
         max_beams = p.integer("max_beams", DEFAULT_MAX_BEAMS, lo=1)
         max_records = p.integer("max_records", DEFAULT_MAX_RECORDS, lo=1)
         gather_bounces = p.integer("gather_bounces", DEFAULT_GATHER_BOUNCES, lo=0)
         # 0: path-traced surfaces
         surface_radius = p.number("surface_radius", DEFAULT_SURFACE_RADIUS, lo=0)
+        if 0 < surface_radius < MIN_RADIUS_FRACTION:
+            p.fail("surface_radius", f"0 (path-traced surfaces) or >= {MIN_RADIUS_FRACTION:g}")
         surface_alpha = p.number("surface_alpha", DEFAULT_SURFACE_ALPHA, lo=0, hi=1, lo_open=True)
         p.refuse_unused("gather_bounces", surface_radius == 0, "unless surface_radius=0")
         p.refuse_unused("surface_alpha", surface_radius > 0, "with surface_radius=0")

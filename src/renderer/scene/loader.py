@@ -22,7 +22,7 @@ from typing import Any, NoReturn
 import numpy as np
 import yaml
 
-from renderer.errors import PgiError, shorten
+from renderer.errors import PgiError, one_line, shorten
 from renderer.errors import shorten_repr as _describe
 from renderer.ranges import integer_problem, number_problem
 from renderer.scene import primitives
@@ -47,11 +47,15 @@ from renderer.volumes import MAX_GRID_SIDE
 SCENE_FILE = "scene.yaml"
 # Bounds that keep every value representable in the float32 of Embree and of the images.
 MAX_LIGHT = 1e30  # emitted radiance, intensity, irradiance
+INT32_MAX = 2**31 - 1
+# A direction or axis shorter than this cannot be normalised: its squared length underflows.
+MIN_LENGTH = 1e-100
 MAX_COORDINATE = 1e15  # |vertex coordinate| (float32 spacing there is ~1e8: far beyond any scene)
 MAX_EXTINCTION = 1e30  # sigma_t x scale (x the densest voxel): Mitsuba multiplies in float32
 # A voxel value: float32 with headroom (the majorant grid widens its bounds by a relative
 # margin; at the float32 maximum that overflowed to infinity and tracking never advanced).
 MAX_DENSITY = 1e30
+MAX_NOISE_FREQUENCY = 1e6
 MAX_FILM_SIDE = 16384
 REPO_ROOT = Path(__file__).resolve().parents[3]  # src/renderer/scene/loader.py -> repo
 
@@ -98,6 +102,8 @@ class _UniqueKeyLoader(yaml.SafeLoader):
     def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict:
         seen = set()
         for key_node, _ in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":  # "<<: *anchor": keys given beside
+                continue  # it override the anchor's, as YAML's merge means
             key = self.construct_object(key_node, deep=deep)
             if not isinstance(key, Hashable):  # e.g. {[1]: 2}: the set below would raise
                 raise yaml.constructor.ConstructorError(
@@ -395,8 +401,8 @@ class _Validator:
             self.fail(path, f"expected a list of 3 numbers [x, y, z], got {_describe(v)}")
         bound = MAX_COORDINATE
         a = np.array([self.number(x, path + (i,), -bound, bound) for i, x in enumerate(v)])
-        if nonzero and not np.any(a):
-            self.fail(path, "expected a non-zero vector")
+        if nonzero and not np.max(np.abs(a)) >= MIN_LENGTH:
+            self.fail(path, f"expected a non-zero vector (a component of size >= {MIN_LENGTH:g})")
         return a
 
     def rgb(self, v: Any, path: KeyPath, hi: float | None = None) -> RGB:
@@ -471,8 +477,9 @@ def _camera(val: _Validator, d: Any) -> Camera:
     origin, target = val.vec3(d["origin"], p + ("origin",)), val.vec3(d["target"], p + ("target",))
     up = val.vec3(d["up"], p + ("up",), nonzero=True)
     view = target - origin
-    if not np.any(view):
+    if not np.max(np.abs(view)) >= MIN_LENGTH:
         val.fail(p + ("target",), "equals camera.origin, so the view direction is undefined")
+    view, up = view / np.max(np.abs(view)), up / np.max(np.abs(up))  # no underflow below
     if np.linalg.norm(np.cross(view, up)) <= 1e-9 * np.linalg.norm(view) * np.linalg.norm(up):
         val.fail(p + ("up",), "is parallel to the view direction (target - origin)")
     return Camera(
@@ -522,16 +529,23 @@ def _phase(val: _Validator, d: Any, p: KeyPath) -> Phase:
             values = np.array([val.number(x, p + ("values", i), lo=0) for i, x in enumerate(raw)])
         else:
             file = val.o.file(p).parent / val.string(d["file"], p + ("file",))
-            try:
-                values = np.load(file) if file.suffix == ".npy" else np.loadtxt(file)
-            except (OSError, ValueError) as e:
-                val.fail(p + ("file",), f"cannot read {file}: {e}")
+            if file.suffix == ".npy":
+                values = _read_npy(val, file, p + ("file",))
+            else:
+                try:
+                    values = np.loadtxt(file, ndmin=1)
+                except (OSError, ValueError) as e:
+                    val.fail(p + ("file",), f"cannot read {file}: {one_line(str(e))}")
+            if values.dtype.kind not in "fiu":
+                val.fail(p + ("file",), f"{file}: expected numbers, got {values.dtype}")
             values = np.asarray(values, np.float64).ravel()
             if not np.all(np.isfinite(values)) or np.any(values < 0):
                 val.fail(p + ("file",), f"{file}: values must be finite and >= 0")
-        if len(values) < 2 or not values.sum() > 0:
-            val.fail(p, "a tabulated phase function needs >= 2 values with a positive sum")
-        return Phase("tabulated", values=values)
+        if len(values) < 2 or not values.max() > 0:
+            val.fail(p, "a tabulated phase function needs >= 2 values, not all 0")
+        # Only the shape matters (both renderers normalise); scaled to a peak of 1 it sums
+        # without overflow and survives Mitsuba's float32.
+        return Phase("tabulated", values=values / values.max())
     # mie: a Lorenz-Mie table for water droplets, computed at load (renderer.volumes)
     keys = ("effective_radius", "effective_variance", "wavelength", "ior", "resolution")
     val.mapping(d, p, required=("type",), optional=keys)
@@ -550,14 +564,23 @@ def _phase(val: _Validator, d: Any, p: KeyPath) -> Phase:
 DENSITY_SOURCES = ("npy", "vdb", "perlin", "step")
 
 
-def _load_npy(val: _Validator, file: Path, p: KeyPath) -> np.ndarray:
+def _read_npy(val: _Validator, file: Path, p: KeyPath) -> np.ndarray:
+    """One array from a .npy file (no pickles)."""
+    if not file.is_file():
+        val.fail(p, f"file not found: {file}")
     try:
         a = np.load(file, allow_pickle=False)
     except (OSError, ValueError, EOFError) as e:
-        why = "not a numpy .npy file" if "pickle" in str(e) else str(e).splitlines()[0]
+        lines = str(e).splitlines()
+        why = "not a numpy .npy file" if "pickle" in str(e) or not lines else one_line(lines[0])
         val.fail(p, f"cannot read {file} as a .npy array: {why}")
     if not isinstance(a, np.ndarray):
         val.fail(p, f"{file}: expected one array, got {type(a).__name__}")
+    return a
+
+
+def _load_npy(val: _Validator, file: Path, p: KeyPath) -> np.ndarray:
+    a = _read_npy(val, file, p)
     if a.ndim != 3 or a.dtype.kind not in "fiu" or 0 in a.shape:
         val.fail(
             p,
@@ -613,7 +636,10 @@ def _load_density(
                         all(isinstance(r, list) and len(r) == 3 for r in b)):  # fmt: skip
                     val.fail(p + ("bbox",), "expected [[i0, j0, k0], [i1, j1, k1]] (inclusive)")
                 bbox = tuple(
-                    tuple(val.integer(x, p + ("bbox", r, c), -(2**31)) for c, x in enumerate(row))
+                    tuple(
+                        val.integer(x, p + ("bbox", r, c), -(2**31), INT32_MAX)
+                        for c, x in enumerate(row)
+                    )  # fmt: skip
                     for r, row in enumerate(b)
                 )
             grid = val.string(d.get("grid", "density"), p + ("grid",))
@@ -626,14 +652,22 @@ def _load_density(
         val.mapping(d, p, required=("type", "resolution"), optional=keys)
         from renderer.volumes import perlin_density
 
+        octaves = val.integer(d.get("octaves", 4), p + ("octaves",), 1, 16)
+        # Upper bounds keep gain^k finite over 16 octaves, and the lattice coordinates of the
+        # finest octave in range (they are cast to int64; finer than a voxel is aliasing).
+        frequency = val.number(d.get("frequency", 4.0), p + ("frequency",), lo=0, hi=1e4)
+        lacunarity = val.number(d.get("lacunarity", 2.0), p + ("lacunarity",), lo=0, hi=16)
+        finest = frequency * lacunarity ** (octaves - 1)
+        if finest > MAX_NOISE_FREQUENCY:
+            val.fail(p, f"the finest octave's frequency, frequency x lacunarity^(octaves - 1), "
+                        f"is {finest:g}; at most {MAX_NOISE_FREQUENCY:g}")  # fmt: skip
         a = perlin_density(
             _resolution(val, d["resolution"], p + ("resolution",)),
-            octaves=val.integer(d.get("octaves", 4), p + ("octaves",), 1, 16),
-            # Upper bounds keep frequency * lacunarity^k and gain^k finite over 16 octaves.
-            frequency=val.number(d.get("frequency", 4.0), p + ("frequency",), lo=0, hi=1e4),
-            lacunarity=val.number(d.get("lacunarity", 2.0), p + ("lacunarity",), lo=0, hi=16),
+            octaves=octaves,
+            frequency=frequency,
+            lacunarity=lacunarity,
             gain=val.number(d.get("gain", 0.5), p + ("gain",), lo=0, hi=16),
-            offset=val.number(d.get("offset", 0.0), p + ("offset",)),
+            offset=val.number(d.get("offset", 0.0), p + ("offset",), lo=-1e6, hi=1e6),
             seed=val.integer(d.get("seed", 0), p + ("seed",), 0),
         )
     else:  # step
@@ -696,7 +730,8 @@ def _medium(val: _Validator, name: str, d: Any) -> Medium:
     if placement is not None:  # an OpenVDB file places its grid; the transform moves it on
         to_world = to_world @ placement
     linear = to_world[:3, :3]
-    if abs(np.linalg.det(linear)) < 1e-12:
+    # Relative to the box's edge lengths: a tiny grid is fine, a flat one is not.
+    if abs(np.linalg.det(linear)) <= 1e-12 * np.prod(np.linalg.norm(linear, axis=0)):
         val.fail(p + ("transform",), "is singular: the grid's box would have no volume")
     if np.any(linear - np.diag(np.diag(linear))):
         # Mitsuba bounds a grid by the axis-aligned box of its transformed cube and extends
@@ -728,10 +763,16 @@ def _mesh_file(val: _Validator, v: Any, p: KeyPath) -> tuple[np.ndarray, np.ndar
             {"type": file.suffix.lower()[1:], "filename": str(file), "face_normals": True}
         )
     except Exception as e:  # Mitsuba raises RuntimeError with its parser's message
-        val.fail(p, f"cannot load {file}: {str(e).splitlines()[-1]}")
+        lines = str(e).strip().splitlines()
+        why = one_line(lines[-1]) if lines else f"not a readable {file.suffix} mesh"
+        val.fail(p, f"cannot load {file}: {why}")
     v = np.array(mesh.vertex_positions_buffer(), dtype=np.float64).reshape(-1, 3)
-    f = np.array(mesh.faces_buffer(), dtype=np.int64).reshape(-1, 3).astype(np.int32)
-    return v, f
+    f = np.array(mesh.faces_buffer(), dtype=np.int64).reshape(-1, 3)
+    if len(f) == 0:
+        val.fail(p, f"{file} holds no triangles")
+    if f.min() < 0 or f.max() >= len(v):  # Mitsuba's PLY reader does not check
+        val.fail(p, f"{file}: a face refers to vertex {int(f.max())}, but there are {len(v)}")
+    return v, f.astype(np.int32)
 
 
 def _shape(val: _Validator, i: int, d: Any, materials: dict, media: dict) -> Shape:
@@ -802,7 +843,7 @@ def _light(val: _Validator, i: int, d: Any) -> Light:
         optional=("cutoff_angle", "beam_width"),
     )
     pos, target = val.vec3(d["position"], p + ("position",)), val.vec3(d["target"], p + ("target",))
-    if not np.any(target - pos):
+    if not np.max(np.abs(target - pos)) >= MIN_LENGTH:
         val.fail(p + ("target",), "equals the light's position, so its axis is undefined")
     cutoff = val.number(
         d.get("cutoff_angle", 20.0), p + ("cutoff_angle",), lo=0, hi=90, lo_open=True
@@ -846,8 +887,11 @@ def load_scene(path: str | Path, overrides: Sequence[str] = ()) -> Scene:
         optional=("max_depth", "rr_depth", "estimator", "march_step"),
     )
     integrator = Integrator(
-        max_depth=val.integer(integ.get("max_depth", -1), ("integrator", "max_depth"), -1),
-        rr_depth=val.integer(integ.get("rr_depth", 5), ("integrator", "rr_depth"), 1),
+        # Depths reach the native core and Mitsuba as 32-bit ints.
+        max_depth=val.integer(
+            integ.get("max_depth", -1), ("integrator", "max_depth"), -1, INT32_MAX
+        ),
+        rr_depth=val.integer(integ.get("rr_depth", 5), ("integrator", "rr_depth"), 1, INT32_MAX),
         estimator=val.string(
             integ.get("estimator", "ratio"), ("integrator", "estimator"), ESTIMATORS
         ),
