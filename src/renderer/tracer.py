@@ -37,7 +37,8 @@ class EmbreeTracer:
         self._scene = rtcore_scene.EmbreeScene()
         TriangleMesh(self._scene, np.ascontiguousarray(triangles, dtype=np.float32))
         self.threads = max(1, threads)
-        self._pool = ThreadPoolExecutor(self.threads) if self.threads > 1 else None
+        # The calling thread traces a chunk itself: the pool holds the other threads.
+        self._pool = ThreadPoolExecutor(self.threads - 1) if self.threads > 1 else None
         self.rays_traced = 0
 
     def _closest(self, batch: RayBatch, lo: int, hi: int) -> dict:
@@ -57,7 +58,8 @@ class EmbreeTracer:
         if chunks == 1:
             return [run(batch, 0, n)]
         bounds = np.linspace(0, n, chunks + 1).astype(int)
-        return list(self._pool.map(lambda i: run(batch, bounds[i], bounds[i + 1]), range(chunks)))
+        rest = [self._pool.submit(run, batch, bounds[i], bounds[i + 1]) for i in range(1, chunks)]
+        return [run(batch, bounds[0], bounds[1])] + [f.result() for f in rest]
 
     def intersect(
         self, batch: RayBatch, n: int
