@@ -6,6 +6,9 @@ from __future__ import annotations
 import math
 from typing import Any
 
+# Counts, depths and indices reach the native core (and Mitsuba) as 32-bit ints.
+INT32_MAX = 2**31 - 1
+
 
 def number_problem(
     v: Any,

@@ -7,9 +7,8 @@ from collections.abc import Iterable
 from typing import Any
 
 from ..errors import PgiError
-from ..ranges import integer_problem, number_problem
+from ..ranges import INT32_MAX, integer_problem, number_problem
 
-INT32_MAX = 2**31 - 1
 # Radii below this fraction of the scene's bounding-sphere radius find no photon, and at
 # ~1e-150 of it 1 / (pi r^2) overflows into non-finite samples.
 MIN_RADIUS_FRACTION = 1e-9

@@ -24,7 +24,7 @@ import yaml
 
 from renderer.errors import PgiError, one_line, shorten
 from renderer.errors import shorten_repr as _describe
-from renderer.ranges import integer_problem, number_problem
+from renderer.ranges import INT32_MAX, integer_problem, number_problem
 from renderer.scene import primitives
 from renderer.scene import transform as xf
 from renderer.scene.model import (
@@ -47,7 +47,6 @@ from renderer.volumes import MAX_GRID_SIDE
 SCENE_FILE = "scene.yaml"
 # Bounds that keep every value representable in the float32 of Embree and of the images.
 MAX_LIGHT = 1e30  # emitted radiance, intensity, irradiance
-INT32_MAX = 2**31 - 1
 # A direction or axis shorter than this cannot be normalised: its squared length underflows.
 MIN_LENGTH = 1e-100
 MAX_COORDINATE = 1e15  # |vertex coordinate| (float32 spacing there is ~1e8: far beyond any scene)
@@ -637,7 +636,7 @@ def _load_density(
                     val.fail(p + ("bbox",), "expected [[i0, j0, k0], [i1, j1, k1]] (inclusive)")
                 bbox = tuple(
                     tuple(
-                        val.integer(x, p + ("bbox", r, c), -(2**31), INT32_MAX)
+                        val.integer(x, p + ("bbox", r, c), -INT32_MAX - 1, INT32_MAX)
                         for c, x in enumerate(row)
                     )  # fmt: skip
                     for r, row in enumerate(b)
