@@ -619,3 +619,12 @@ def test_a_truncated_vdb_is_a_short_error(tmp_path):
     doc = edit(media={"fog": {"type": "grid", "density": "t.vdb", "albedo": 0.5}})
     msg = expect_error(write(tmp_path, doc), "media.fog.density", "cannot read as an OpenVDB")
     assert len(msg) < 400
+
+
+@pytest.mark.parametrize(("key", "text"), [("camera.fov", "1:20"), ("film.width", "0100")])
+def test_yaml_1_1_number_forms_are_not_read_silently(tmp_path, key, text):
+    """YAML 1.1 read 1:20 as 80 (base 60) and 0100 as 64 (octal); YAML 1.2, and pgi, do not."""
+    expect_error(write(tmp_path, BASE), key, f"got '{text}'", [f"{key}={text}"])
+    field = {"camera.fov": "fov: 40", "film.width": "width: 8"}[key]
+    doc = yaml.safe_dump(BASE).replace(field, field.split(":")[0] + f": {text}")
+    expect_error(write(tmp_path, doc, "file.yaml"), key, f"got '{text}'")
