@@ -118,12 +118,13 @@ def vector_chi2(a: Estimate, b: Estimate) -> tuple[np.ndarray, np.ndarray, float
     """
     xa, xb = _cellwise(a), _cellwise(b)
     ka, kb = len(xa), len(xb)
-    d = xa.mean(axis=0) - xb.mean(axis=0)
-    ca, cb = xa - xa.mean(axis=0), xb - xb.mean(axis=0)
+    mean_a, mean_b = xa.mean(axis=0), xb.mean(axis=0)
+    d = mean_a - mean_b
+    ca, cb = xa - mean_a, xb - mean_b
     va = np.einsum("kni,knj->nij", ca, ca) / ((ka - 1) * ka)
     vb = np.einsum("kni,knj->nij", cb, cb) / ((kb - 1) * kb)
     lam, vec = np.linalg.eigh(va + vb)
-    scale = np.abs(xa.mean(axis=0)).max(axis=1) + np.abs(xb.mean(axis=0)).max(axis=1)
+    scale = np.abs(mean_a).max(axis=1) + np.abs(mean_b).max(axis=1)
     # (1e-12 of the largest: eigenvalues below it are rounding noise of eigh itself.)
     kept = lam > np.maximum(1e-12 * lam[:, -1], (FLOAT_NOISE * scale) ** 2)[:, None]
     rank = kept.sum(axis=1)

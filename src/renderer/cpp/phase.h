@@ -79,7 +79,8 @@ constexpr double kHgIsotropicLimit = 1e-4;
 // for g >= 0 and (1 + g)^2 - 2 g (1 + cos) for g < 0: the plain form cancels to 0 in the
 // peak for |g| within ~1e-10 of 1 (an infinite pdf, then NaN MIS weights).
 inline double hg_value(double cos_theta, double g) {
-    double denom = g >= 0 ? (1 - g) * (1 - g) + 2 * g * (1 - cos_theta) : (1 + g) * (1 + g) - 2 * g * (1 + cos_theta);
+    double denom = g >= 0 ? (1 - g) * (1 - g) + 2 * g * (1 - cos_theta)
+                          : (1 + g) * (1 + g) - 2 * g * (1 + cos_theta);
     return kInv4Pi * (1 - g) * (1 + g) / (denom * std::sqrt(denom));
 }
 
