@@ -29,7 +29,7 @@ void DensityGrid::build_majorants(int cell_size) {
                 for (int z = z0; z <= z1; ++z)
                     for (int y = y0; y <= y1; ++y)
                         for (int x = x0; x <= x1; ++x) {
-                            float v = voxel(x, y, z);
+                            float v = values[(size_t(z) * ny + y) * nx + x];
                             hi = std::max(hi, v);
                             lo = std::min(lo, v);
                         }

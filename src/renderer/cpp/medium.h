@@ -39,12 +39,6 @@ struct DensityGrid {
     // control extinction of residual ratio tracking).
     std::vector<float> minorants;
 
-    float voxel(int x, int y, int z) const {
-        x = std::clamp(x, 0, nx - 1);
-        y = std::clamp(y, 0, ny - 1);
-        z = std::clamp(z, 0, nz - 1);
-        return values[(size_t(z) * ny + y) * nx + x];
-    }
     Vec3 to_local(const Vec3 &p) const {
         const auto &m = world_to_local;
         return {m[0][0] * p.x + m[0][1] * p.y + m[0][2] * p.z + m[0][3],
@@ -57,18 +51,27 @@ struct DensityGrid {
                 m[1][0] * d.x + m[1][1] * d.y + m[1][2] * d.z,
                 m[2][0] * d.x + m[2][1] * d.y + m[2][2] * d.z};
     }
-    // Interpolated density at a point in unit-cube coordinates (0 outside).
+    // Interpolated density at a point in unit-cube coordinates (0 outside). Each lerp is
+    // a + t (b - a), exact where a == b: in a constant cell the density equals the
+    // cell's exact majorant, never an ulp above it (ratio tracking's 1 - sigma / maj
+    // would turn negative).
     double density_local(const Vec3 &q) const {
         if (q.x < 0 || q.y < 0 || q.z < 0 || q.x > 1 || q.y > 1 || q.z > 1) return 0;
         double fx = q.x * nx - 0.5, fy = q.y * ny - 0.5, fz = q.z * nz - 0.5;
-        int x0 = int(std::floor(fx)), y0 = int(std::floor(fy)), z0 = int(std::floor(fz));
-        double tx = fx - x0, ty = fy - y0, tz = fz - z0;
-        double c00 = voxel(x0, y0, z0) * (1 - tx) + voxel(x0 + 1, y0, z0) * tx;
-        double c10 = voxel(x0, y0 + 1, z0) * (1 - tx) + voxel(x0 + 1, y0 + 1, z0) * tx;
-        double c01 = voxel(x0, y0, z0 + 1) * (1 - tx) + voxel(x0 + 1, y0, z0 + 1) * tx;
-        double c11 = voxel(x0, y0 + 1, z0 + 1) * (1 - tx) + voxel(x0 + 1, y0 + 1, z0 + 1) * tx;
-        double c0 = c00 * (1 - ty) + c10 * ty, c1 = c01 * (1 - ty) + c11 * ty;
-        return c0 * (1 - tz) + c1 * tz;
+        double bx = std::floor(fx), by = std::floor(fy), bz = std::floor(fz);
+        double tx = fx - bx, ty = fy - by, tz = fz - bz;
+        // The lower corner is at least -1 and the upper at most n: clamp each once.
+        int x0 = int(bx), y0 = int(by), z0 = int(bz);
+        size_t xa = size_t(std::max(x0, 0)), xb = size_t(std::min(x0 + 1, nx - 1));
+        size_t ya = size_t(std::max(y0, 0)), yb = size_t(std::min(y0 + 1, ny - 1));
+        size_t za = size_t(std::max(z0, 0)), zb = size_t(std::min(z0 + 1, nz - 1));
+        const float *v = values.data();
+        auto row = [&](size_t y, size_t z) { return v + (z * size_t(ny) + y) * size_t(nx); };
+        auto lerp = [](double a, double b, double t) { return a + t * (b - a); };
+        const float *r00 = row(ya, za), *r10 = row(yb, za), *r01 = row(ya, zb), *r11 = row(yb, zb);
+        double c00 = lerp(r00[xa], r00[xb], tx), c10 = lerp(r10[xa], r10[xb], tx);
+        double c01 = lerp(r01[xa], r01[xb], tx), c11 = lerp(r11[xa], r11[xb], tx);
+        return lerp(lerp(c00, c10, ty), lerp(c01, c11, ty), tz);
     }
     void build_majorants(int cell_size);
 };
@@ -135,38 +138,44 @@ void traverse_cells(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax, 
         t1 = std::min(t1, tb);
     }
     if (!(t0 < t1)) return;
+    // The current cell is one linear index; each axis keeps its signed stride, the
+    // boundary crossings left before the ray leaves the grid, and the next crossing's t.
     const int res[3] = {g.mx, g.my, g.mz};
+    const int64_t stride_of[3] = {1, g.mx, int64_t(g.mx) * g.my};
     Vec3 p = ol + dl * t0;
-    int cell[3], step[3];
+    int64_t index = 0, stride[3];
+    int crossings_left[3];
     double next_t[3], delta_t[3];
     for (int a = 0; a < 3; ++a) {
-        double c = p[a] * res[a];
-        cell[a] = std::clamp(int(std::floor(c)), 0, res[a] - 1);
+        int c = std::clamp(int(std::floor(p[a] * res[a])), 0, res[a] - 1);
+        index += c * stride_of[a];
         if (dl[a] > 0) {
-            step[a] = 1;
+            stride[a] = stride_of[a];
+            crossings_left[a] = res[a] - 1 - c;
             delta_t[a] = 1 / (dl[a] * res[a]);
-            next_t[a] = t0 + (double(cell[a] + 1) / res[a] - p[a]) / dl[a];
+            next_t[a] = t0 + (double(c + 1) / res[a] - p[a]) / dl[a];
         } else if (dl[a] < 0) {
-            step[a] = -1;
+            stride[a] = -stride_of[a];
+            crossings_left[a] = c;
             delta_t[a] = -1 / (dl[a] * res[a]);
-            next_t[a] = t0 + (double(cell[a]) / res[a] - p[a]) / dl[a];
+            next_t[a] = t0 + (double(c) / res[a] - p[a]) / dl[a];
         } else {
-            step[a] = 0;
+            stride[a] = 0;
+            crossings_left[a] = 0;
             delta_t[a] = kInf;
             next_t[a] = kInf;
         }
     }
+    const float *majorants = g.majorants.data(), *minorants = g.minorants.data();
     double t = t0;
     while (t < t1) {
         int a = (next_t[0] < next_t[1]) ? (next_t[0] < next_t[2] ? 0 : 2) : (next_t[1] < next_t[2] ? 1 : 2);
         double t_exit = std::min(next_t[a], t1);
-        size_t index = (size_t(cell[2]) * g.my + cell[1]) * g.mx + cell[0];
-        if (t_exit > t &&
-            !visit(t, t_exit, g.majorants[index] * m.grid_sigma, g.minorants[index] * m.grid_sigma))
+        if (t_exit > t && !visit(t, t_exit, majorants[index] * m.grid_sigma, minorants[index] * m.grid_sigma))
             return;
         t = t_exit;
-        cell[a] += step[a];
-        if (cell[a] < 0 || cell[a] >= res[a]) return;
+        if (crossings_left[a]-- == 0) return;
+        index += stride[a];
         next_t[a] += delta_t[a];
     }
 }
@@ -183,18 +192,26 @@ inline double grid_sigma_t(const Medium &m, const Vec3 &p, MediumStats &stats) {
     return m.grid_sigma * m.grid.density_local(m.grid.to_local(p));
 }
 
-// Tentative collisions over [0, tmax): exponential steps at each cell's majorant
-// rate. visit(t, maj) returns false to stop.
+// Tentative collisions over [0, tmax) at each cell's majorant rate. visit(t, maj)
+// returns false to stop. One exponential majorant optical depth is drawn per
+// collision and what is left of it carries across cell boundaries (memoryless:
+// the remainder is again Exp(1)), so a cell the flight passes costs no logarithm.
 template <typename Visit>
 void tentative_collisions(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax, Sampler &rng,
                           Visit &&visit) {
+    double depth = exponential_depth(rng.next());  // majorant optical depth to the next collision
     traverse_majorants(m, o, d, tmax, [&](double t0, double t1, double maj) {
         if (maj <= 0) return true;
         double t = t0;
         while (true) {
-            t += exponential_depth(rng.next()) / maj;
-            if (t >= t1) return true;
+            double rest = maj * (t1 - t);  // the cell's optical depth ahead of t
+            if (depth >= rest) {
+                depth -= rest;
+                return true;
+            }
+            t += depth / maj;
             if (!visit(t, maj)) return false;
+            depth = exponential_depth(rng.next());
         }
     });
 }
@@ -357,7 +374,8 @@ inline RGB transmittance(const Medium &m, const Vec3 &o, const Vec3 &d, double t
             });
             return RGB(std::exp(-tau));
         }
-        case Estimator::Residual:
+        case Estimator::Residual: {
+            double depth = exponential_depth(rng.next());
             traverse_cells(m, o, d, tmax, [&](double t0, double t1, double maj, double minor) {
                 if (maj <= 0) return true;
                 tr *= std::exp(-minor * (t1 - t0));  // the control, in closed form
@@ -366,15 +384,21 @@ inline RGB transmittance(const Medium &m, const Vec3 &o, const Vec3 &d, double t
                 // Before this cell's lookups, not after the control: constant cells stay exact.
                 if (!roulette_transmittance(tr, rng)) return false;
                 double t = t0;
-                while (true) {
-                    t += exponential_depth(rng.next()) / residual;
-                    if (t >= t1) return true;
+                while (true) {  // the residual's optical depth carries across cells, as above
+                    double rest = residual * (t1 - t);
+                    if (depth >= rest) {
+                        depth -= rest;
+                        return true;
+                    }
+                    t += depth / residual;
+                    depth = exponential_depth(rng.next());
                     // (sigma - minor) / residual is the residual's null-collision ratio.
                     tr *= std::max(0.0, maj - grid_sigma_t(m, o + d * t, stats)) / residual;
                     if (!roulette_transmittance(tr, rng)) return false;
                 }
             });
             return RGB(tr);
+        }
         default:
             return RGB(ratio_track(m, o, d, tmax, rng, stats, [](double, double) {}));
     }
