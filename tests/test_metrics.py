@@ -116,7 +116,8 @@ def test_grey_and_float32_inputs() -> None:
 
 
 def test_shape_mismatch_raises() -> None:
-    with pytest.raises(ValueError, match="shape mismatch.*test image is 5x4.*reference is 4x4"):
+    mismatch = "shape mismatch.*test image is 5x4.*reference image is 4x4"
+    with pytest.raises(ValueError, match=mismatch):
         m.compare_images(np.zeros((4, 5, 3)), np.zeros((4, 4, 3)))
     with pytest.raises(ValueError, match=r"expected an \(H, W, 3\) image"):
         m.compare_images(np.zeros((4, 4, 2)), np.zeros((4, 4, 2)))

@@ -161,6 +161,42 @@ def test_tables_best_flags_and_speedup(tmp_path: Path) -> None:
     assert np.isnan(conv.loc[("pt", "flip"), "slope_ref_removed"])  # no reference error known
 
 
+def test_baseline_against_itself_is_exactly_one_whatever_its_bound(tmp_path: Path) -> None:
+    """pt identical to the reference (target 0, met from its first budget on): its own
+    time is a bound ("<="), and its speed-up against itself is 1 with no bound, not "?"."""
+    runs = _runs()
+    runs.loc[runs.method == "pt", "relmse"] = 0.0
+    tte = T.write_tables(runs, tmp_path, metric="relmse", baseline="pt")["time_to_error"]
+    own = tte.set_index("method").loc["pt"]
+    assert own["bound"] == "<=" and own["speedup_vs_pt"] == 1.0 and own["speedup_bound"] == ""
+
+
+def test_convergence_plot_leaves_out_what_a_log_axis_cannot_show() -> None:
+    """1 - SSIM is NaN on images under 11 pixels: such runs are left out of the plot, and a
+    metric with nothing left gives a placeholder, not an exception."""
+    from compare.report.plots import convergence_svg
+
+    runs = _runs()
+    runs["one_minus_ssim"] = math.nan
+    svg = convergence_svg(runs, "one_minus_ssim", "s: 1 - SSIM", {})
+    assert svg.startswith("<svg") and "no finite positive values" in svg
+    runs.loc[runs.method == "lt", "one_minus_ssim"] = 0.5  # pt has none: lt alone is drawn
+    svg = convergence_svg(runs, "one_minus_ssim", "s: 1 - SSIM", {})
+    assert "lt (slope" in svg and "pt (slope" not in svg
+
+
+def test_reference_halves_that_differ_in_size_are_named(tmp_path: Path) -> None:
+    write_exr(tmp_path / "a.exr", np.ones((8, 8, 3)))
+    write_exr(tmp_path / "b.exr", np.ones((8, 9, 3)))
+    with pytest.raises(
+        ValueError, match=r"reference half .*a\.exr is 8x8 but reference half .*b\.exr is 9x8"
+    ):
+        merge_reference(
+            tmp_path / "a.exr", tmp_path / "b.exr", tmp_path / "r.exr", tmp_path / "r.json"
+        )
+    assert not (tmp_path / "r.exr").exists()
+
+
 def test_late_snapshots_are_marked(tmp_path: Path) -> None:
     """A cell whose snapshot came over 10 % after its budget is not equal time: marked."""
     runs = _runs()

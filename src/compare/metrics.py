@@ -66,16 +66,19 @@ def as_rgb(img: np.ndarray, name: str = "image") -> np.ndarray:
     return a.astype(np.float64, copy=False)
 
 
-def validate_pair(test: np.ndarray, ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Check shapes and finiteness; return both images as float64 (H, W, 3)."""
-    x = as_rgb(test, "test image")
-    r = as_rgb(ref, "reference image")
+def validate_pair(
+    test: np.ndarray, ref: np.ndarray, names: tuple[str, str] = ("test image", "reference image")
+) -> tuple[np.ndarray, np.ndarray]:
+    """Check shapes and finiteness; return both images as float64 (H, W, 3). `names` are
+    the two images' names in messages."""
+    x = as_rgb(test, names[0])
+    r = as_rgb(ref, names[1])
     if x.shape != r.shape:
         raise ValueError(
-            f"shape mismatch: test image is {x.shape[1]}x{x.shape[0]} "
-            f"but reference is {r.shape[1]}x{r.shape[0]} (width x height)"
+            f"shape mismatch: {names[0]} is {x.shape[1]}x{x.shape[0]} "
+            f"but {names[1]} is {r.shape[1]}x{r.shape[0]} (width x height)"
         )
-    for name, a in (("test image", x), ("reference image", r)):
+    for name, a in zip(names, (x, r), strict=True):
         bad = ~np.isfinite(a)
         if bad.any():
             n = int(bad.any(axis=2).sum())
@@ -194,7 +197,9 @@ def compare_images(test: np.ndarray, ref: np.ndarray) -> dict[str, float]:
     }
 
 
-def reference_error(half_a: np.ndarray, half_b: np.ndarray) -> dict[str, float]:
+def reference_error(
+    half_a: np.ndarray, half_b: np.ndarray, names: tuple[str, str] = ("half 0", "half 1")
+) -> dict[str, float]:
     """Estimate the error of a reference that is the average of two independent halves.
 
     With independent, equally converged halves A and B (variance s^2 per pixel each) the
@@ -204,7 +209,7 @@ def reference_error(half_a: np.ndarray, half_b: np.ndarray) -> dict[str, float]:
     Returned: ``halves_relmse`` (A vs B, denominators from R), ``ref_relmse`` (= / 4),
     and the same for MSE.
     """
-    a, b = validate_pair(half_a, half_b)
+    a, b = validate_pair(half_a, half_b, names)
     r = 0.5 * (a + b)
     sq = (a - b) ** 2
     halves_rel = float((sq / (r * r + EPS)).mean())

@@ -43,7 +43,8 @@ def merge_reference(
     """
     a = read_exr(half_a).astype(np.float64)
     b = read_exr(half_b).astype(np.float64)
-    err = reference_error(a, b)  # also validates shapes and finiteness
+    # Also validates shapes and finiteness; messages name the halves' files.
+    err = reference_error(a, b, names=(f"reference half {half_a}", f"reference half {half_b}"))
     ref = 0.5 * (a + b)
     sides = []
     for h in (half_a, half_b):

@@ -220,7 +220,10 @@ def time_to_error_table(summary: pd.DataFrame, metric: str, baseline: str) -> pd
                     "extrapolated": extrap,
                     "bound": bound,
                     f"speedup_vs_{baseline}": t_base / t if t > 0 else math.nan,
-                    "speedup_bound": _speedup_bound(base_bound, bound),
+                    # The baseline against itself is 1 exactly, whatever bounds its time.
+                    "speedup_bound": ""
+                    if method == baseline
+                    else _speedup_bound(base_bound, bound),
                 }
             )
     return pd.DataFrame(rows)

@@ -32,7 +32,13 @@ def convergence_svg(
     ref_error: float | None = None,
 ) -> str:
     """Mean error over seeds vs mean render time per method, min-max band over seeds,
-    fitted slope in the legend, and the reference's own error as a dashed line."""
+    fitted slope in the legend, and the reference's own error as a dashed line. Runs
+    whose error cannot be drawn on a log axis (NaN, e.g. 1 - SSIM of images under 11
+    pixels, or exactly 0) are left out; with none left the figure says so."""
+    values = pd.to_numeric(runs[metric], errors="coerce")
+    runs = runs[np.isfinite(values) & (values > 0)]
+    if runs.empty:
+        return _no_data_svg(title, "no finite positive values to plot on a log scale")
     fig, ax = plt.subplots(figsize=(6.4, 4.2), dpi=100)
     for method, d in runs.groupby("method", sort=True):
         t_all = render_time(d)
@@ -68,3 +74,14 @@ def convergence_svg(
     svg = buf.getvalue()
     svg = svg[svg.find("<svg") :]  # drop the XML prolog for inlining
     return re.sub(r"<metadata>.*?</metadata>\s*", "", svg, flags=re.S)
+
+
+def _no_data_svg(title: str, why: str) -> str:
+    """A small inline SVG in place of a plot that has nothing to draw."""
+    from html import escape
+
+    return (
+        '<svg xmlns="http://www.w3.org/2000/svg" width="460" height="60">'
+        f'<text x="8" y="22" font-size="14">{escape(title)}</text>'
+        f'<text x="8" y="44" font-size="12" fill="#666">{escape(why)}</text></svg>'
+    )
