@@ -280,6 +280,21 @@ def test_lights_emit_into_their_medium(name, expected):
     assert np.all(per_triangle[first : first + len(scene.shapes[light].faces)] == want)
 
 
+def test_sun_outside_a_fog_filled_room_starts_in_vacuum():
+    """crepuscular: the camera's fog fills a room no shape names, and the sun shines in
+    through null windows whose exterior is vacuum. The routes from the sun's disk that reach
+    the room through the windows decide; the ones the opaque walls end do not (the disk's
+    centre alone, followed through the back wall, put the sun in the fog)."""
+    from renderer.engine import build_native_scene
+    from renderer.methods.lightpath import emission_media
+    from renderer.tracer import EmbreeTracer
+
+    scene = load_small("crepuscular", 8, 8)
+    native = build_native_scene(scene)
+    _, per_light = emission_media(native, EmbreeTracer(native.triangles, 1), scene)
+    assert per_light.tolist() == [-1]
+
+
 def test_sun_shining_into_an_unbounded_grid_starts_in_it():
     """A smoke grid no shape bounds, the camera in it, lit by the sun: the sun's light paths
     start in the smoke (outside its box, where the density is zero), as pt's shadow rays

@@ -104,10 +104,15 @@ def emission_media(native: NativeScene, tracer: EmbreeTracer, scene: Scene, seed
     point, spot and directional lights in the scene's order. Emitting triangles are
     probed from their centroid on the front side; point and spot lights from their
     position; directional lights start on a disk just outside the scene's bounding sphere
-    (vacuum). When the camera sits in a medium, lights it reaches without crossing a shape
-    that names a medium share it (a fog-filled room has no shape naming its fog; a smoke
-    grid with no shape around it lets the sun's paths start in the smoke, outside its box),
-    a directional light judged from its disk's centre.
+    (vacuum). When the camera sits in a medium, a light shares it if the straight route
+    from the light to the camera crosses no shape that names a medium (a fog-filled room
+    has no shape naming its fog; a smoke grid with no shape around it lets the sun's paths
+    start in the smoke, outside its box). A route that an opaque surface naming no medium
+    ends first decides nothing (light cannot pass there, and the medium on its far side is
+    not the camera's by any rule): a directional light is judged by the decided routes from
+    points spread over its disk, by majority (the sun outside a fog-filled room with windows
+    is reached through the windows, whose exterior is vacuum); where no route decides, the
+    route is followed through such surfaces, as before.
     """
     rng = np.random.default_rng(seed)
     tri = native.triangles
@@ -149,37 +154,80 @@ def emission_media(native: NativeScene, tracer: EmbreeTracer, scene: Scene, seed
         # in the camera's medium, by the same transition rule.
         camera_medium = _medium_names(scene)[scene.camera.medium]
         if len(emitting):
-            same = _reaches_camera_freely(native, tracer, scene, start)
+            same = _shares_camera_medium(_camera_routes(native, tracer, scene, start), axis=None)
             per_triangle[emitting[same]] = camera_medium
         for i, pos in enumerate(point_positions):
-            if pos is None:  # directional: the centre of the disk its paths start on
-                pos = _sun_disk_centre(native, scene.lights[i].direction)
-            if _reaches_camera_freely(native, tracer, scene, pos[None])[0]:
+            if pos is None:  # directional: routes from points spread over its disk
+                points = _sun_disk_points(native, scene.lights[i].direction, rng)
+            else:
+                points = pos[None]
+            routes = _camera_routes(native, tracer, scene, points)
+            if _shares_camera_medium(routes[None], axis=1)[0]:
                 per_light[lights_area + i] = camera_medium
     return per_triangle, per_light
 
 
-def _sun_disk_centre(native: NativeScene, direction: np.ndarray) -> np.ndarray:
-    """Centre of the disk a directional light's paths start on (cpp/lightpath.cpp): the
-    core's scene centre, 1.01 scene radii against the direction of travel."""
+# Points on a directional light's disk whose routes to the camera vote on its medium.
+_SUN_PROBES = 256
+
+# Route outcomes (_camera_routes): which medium the point is in, as far as its straight
+# route to the camera tells.
+_CROSSES_NAMED, _REACHES_CAMERA, _ENDS_OPAQUE, _ONLY_OPAQUE_TO_CAMERA = 0, 1, 2, 3
+
+
+def _sun_disk_points(native: NativeScene, direction, rng: np.random.Generator) -> np.ndarray:
+    """Points spread over the disk a directional light's paths start on (cpp/lightpath.cpp):
+    radius 1.01 scene radii, centred that far from the core's scene centre against the
+    direction of travel, perpendicular to it. The first point is the centre."""
     core = native.core
-    return np.asarray(core.scene_center) - np.asarray(direction, np.float64) * (
-        1.01 * core.scene_radius
-    )
+    d = np.asarray(direction, np.float64)
+    d = d / np.linalg.norm(d)
+    radius = 1.01 * core.scene_radius
+    centre = np.asarray(core.scene_center) - d * radius
+    helper = np.array([1.0, 0, 0]) if abs(d[0]) < 0.9 else np.array([0, 1.0, 0])
+    s = np.cross(d, helper)
+    s /= np.linalg.norm(s)
+    t = np.cross(d, s)
+    r = radius * np.sqrt(rng.random(_SUN_PROBES - 1))
+    phi = 2 * np.pi * rng.random(_SUN_PROBES - 1)
+    ring = centre + (r * np.cos(phi))[:, None] * s + (r * np.sin(phi))[:, None] * t
+    return np.vstack([centre[None], ring])
 
 
-def _reaches_camera_freely(
+def _shares_camera_medium(routes: np.ndarray, axis: int | None) -> np.ndarray:
+    """Whether lights share the camera's medium from their routes' outcomes: the majority
+    of the routes that decide (reach the camera or cross a named shape first); with none
+    deciding, whether the route reaches the camera when opaque unnamed surfaces are passed.
+    axis=None: one route per light; axis=1: a row of routes per light."""
+    routes = np.atleast_2d(routes) if axis == 1 else routes[:, None]
+    reach = (routes == _REACHES_CAMERA).sum(axis=1)
+    cross = (routes == _CROSSES_NAMED).sum(axis=1)
+    decided = reach + cross > 0
+    undecided_reach = routes[:, 0] == _ONLY_OPAQUE_TO_CAMERA
+    return np.where(decided, reach > cross, undecided_reach)
+
+
+def _camera_routes(
     native: NativeScene, tracer: EmbreeTracer, scene: Scene, points: np.ndarray
 ) -> np.ndarray:
-    """True where the segment from a point to the camera crosses no shape naming a medium."""
+    """Outcome of the straight route from each point to the camera: _CROSSES_NAMED where
+    it first crosses a shape naming a medium; _REACHES_CAMERA where it crosses only null
+    or dielectric shapes naming none; otherwise an opaque unnamed surface comes first, and
+    the route, followed through such surfaces, either crosses a named shape
+    (_ENDS_OPAQUE) or not (_ONLY_OPAQUE_TO_CAMERA)."""
     n = len(points)
-    free = np.ones(n, bool)
+    outcome = np.full(n, _REACHES_CAMERA, np.int8)
     if n == 0:
-        return free
+        return outcome
     _, _, named = _triangle_media(native, scene, _medium_names(scene))
+    passable_types = {"null", "dielectric"}
+    passable = _per_triangle(
+        native, scene, [scene.materials[s.material].type in passable_types for s in scene.shapes]
+    ).astype(bool)
     eps = 1e-5 * float(np.ptp(native.triangles.reshape(-1, 3), axis=0).max())
     camera = np.asarray(scene.camera.origin, np.float64)
     origin = points.astype(np.float64).copy()
+    blocked = np.zeros(n, bool)  # an opaque unnamed surface came first
     batch = RayBatch(n)
     pending = np.arange(n)
     for _ in range(_MAX_PROBE_HITS):
@@ -195,11 +243,17 @@ def _reaches_camera_freely(
         hit = prim >= 0
         crossed = np.zeros(m, bool)
         crossed[hit] = named[prim[hit]]
-        free[pending[crossed]] = False
+        outcome[pending[crossed]] = np.where(
+            blocked[pending[crossed]], _ENDS_OPAQUE, _CROSSES_NAMED
+        )
+        opaque = np.zeros(m, bool)
+        opaque[hit] = ~passable[prim[hit]]
+        blocked[pending[opaque & ~crossed]] = True
         onward = hit & ~crossed
         origin[pending[onward]] += d[onward] * (tfar[:m][onward, None] + eps)
         pending = pending[onward]
-    return free
+    outcome[(outcome == _REACHES_CAMERA) & blocked] = _ONLY_OPAQUE_TO_CAMERA
+    return outcome
 
 
 def _majority(votes: np.ndarray) -> np.ndarray:
