@@ -38,11 +38,12 @@ class Estimate:
         return self.samples.std(axis=0, ddof=1) / np.sqrt(len(self.samples))
 
 
-def ours(method_cls, scene: Scene, iterations: int, seed: int = 1, **params) -> Estimate:
-    """One image per iteration of a progressive method. Every running image the method
-    returns must be finite and non-negative (the per-iteration differences below may dip an
-    ulp under zero where an iteration added nothing)."""
-    method = method_cls(scene, seed=seed, threads=2, params=params)
+def iteration_images(method, iterations: int, on_iteration=None) -> np.ndarray:
+    """Run a progressive method and return the image of each iteration (stacked). Every
+    running image the method returns must be finite and non-negative (the per-iteration
+    differences may dip an ulp under zero where an iteration added nothing), and no sample
+    may have been dropped as non-finite. on_iteration(n, running_image) sees the running
+    image after n iterations."""
     images, previous = [], 0.0
     for i in range(iterations):
         method.run_iteration(i)
@@ -51,8 +52,16 @@ def ours(method_cls, scene: Scene, iterations: int, seed: int = 1, **params) -> 
         total = running * (i + 1)  # running mean -> running sum
         images.append(total - previous)
         previous = total
-        assert method.stats()["nonfinite"] == 0
-    return Estimate(np.stack(images))
+        if on_iteration is not None:
+            on_iteration(i + 1, running)
+    assert method.stats()["nonfinite"] == 0
+    return np.stack(images)
+
+
+def ours(method_cls, scene: Scene, iterations: int, seed: int = 1, **params) -> Estimate:
+    """One image per iteration of a progressive method."""
+    method = method_cls(scene, seed=seed, threads=2, params=params)
+    return Estimate(iteration_images(method, iterations))
 
 
 def mitsuba(scene: Scene, passes: int, spp: int, seed: int = 1000) -> Estimate:

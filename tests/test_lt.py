@@ -291,7 +291,7 @@ def test_sun_outside_a_fog_filled_room_starts_in_vacuum():
     """crepuscular: the camera's fog fills a room no shape names, and the sun shines in
     through null windows whose exterior is vacuum. The routes from the sun's disk that reach
     the room through the windows decide; the ones the opaque walls end do not (the disk's
-    centre alone, followed through the back wall, put the sun in the fog)."""
+    centre alone, followed through the room's opaque shell, put the sun in the fog)."""
     from renderer.engine import build_native_scene
     from renderer.methods.lightpath import emission_media
     from renderer.tracer import EmbreeTracer
@@ -300,6 +300,32 @@ def test_sun_outside_a_fog_filled_room_starts_in_vacuum():
     native = build_native_scene(scene)
     _, per_light = emission_media(native, EmbreeTracer(native.triangles, 1), scene)
     assert per_light.tolist() == [-1]
+
+
+def test_disk_votes_for_the_medium_its_deciding_routes_find():
+    """The vote behind a directional light's medium: routes reaching the camera vote for its
+    medium (here 0), routes first crossing a named shape for the medium on the disk's side of
+    it, routes an opaque unnamed surface ends do not vote; with no vote the centre's route
+    (the first), followed through opaque surfaces, decides between the camera's medium and
+    vacuum."""
+    from renderer.methods import lightpath as L
+
+    cross, reach, ends, through = (
+        L._CROSSES_NAMED,
+        L._REACHES_CAMERA,
+        L._ENDS_OPAQUE,
+        L._ONLY_OPAQUE_TO_CAMERA,
+    )
+
+    def medium(outcomes, sides):
+        return L._disk_medium(np.array(outcomes), np.array(sides), 0)
+
+    assert medium([through, cross, cross, reach, ends], [-1, -1, -1, -1, -1]) == -1
+    assert medium([ends, reach, reach, cross], [-1, -1, -1, -1]) == 0
+    assert medium([ends, cross, cross, reach], [-1, 0, 0, -1]) == 0  # outside a box of 0
+    assert medium([ends, cross, reach], [-1, 1, -1]) == 0  # a tie: the smaller index
+    assert medium([through, ends, ends], [-1, -1, -1]) == 0
+    assert medium([ends, ends, through], [-1, -1, -1]) == -1
 
 
 def test_sun_shining_into_an_unbounded_grid_starts_in_it():

@@ -35,7 +35,7 @@ import numpy as np
 import pytest
 
 from conftest import load_small
-from parity import Estimate, agreement, ours
+from parity import Estimate, agreement, iteration_images, ours
 from renderer.errors import PgiError
 from renderer.methods.ppb import ProgressivePhotonBeams
 from renderer.methods.pt import PathTracing
@@ -69,19 +69,17 @@ def _run(scene, seed: int):
     method = ProgressivePhotonBeams(
         scene, seed=seed, threads=2, params={"light_paths": LIGHT_PATHS}
     )
-    images, snapshots, previous = [], {}, 0.0
-    for i in range(ITERATIONS):
-        method.run_iteration(i)
-        total = method.image() * (i + 1)
-        images.append(total - previous)
-        previous = total
-        if i + 1 in CHECKPOINTS:
-            snapshots[i + 1] = method.image()
+    snapshots = {}
+
+    def keep(n, running):
+        if n in CHECKPOINTS:
+            snapshots[n] = running
+
+    images = iteration_images(method, ITERATIONS, keep)
     stats = method.stats()
-    assert stats["nonfinite"] == 0 and stats["beams_truncated"] == 0
-    assert stats["beams_escaped"] == 0
+    assert stats["beams_truncated"] == 0 and stats["beams_escaped"] == 0
     assert stats["beam_pairs"] > 0
-    return np.stack(images), snapshots
+    return images, snapshots
 
 
 def test_same_image_for_one_and_two_threads(scene):
@@ -164,14 +162,7 @@ def test_variants_image_mean_matches_pt(name, params, overrides, iterations):
     method = ProgressivePhotonBeams(
         scene, seed=3, threads=2, params={"light_paths": LIGHT_PATHS, **params}
     )
-    images, previous = [], 0.0
-    for i in range(iterations):
-        method.run_iteration(i)
-        total = method.image() * (i + 1)
-        images.append(total - previous)
-        previous = total
-    assert method.stats()["nonfinite"] == 0
-    ppb = Estimate(np.stack(images)).image_mean()
+    ppb = Estimate(iteration_images(method, iterations)).image_mean()
     assert_agrees_within_bias_allowance(ppb, pt, name)
     # The control: 5 % less or more light fails (measured: 3 % passes on some variants).
     for scale in (0.95, 1.05):

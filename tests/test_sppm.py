@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 from conftest import load_small
-from parity import Estimate, agreement
+from parity import Estimate, agreement, iteration_images
 from renderer.errors import PgiError
 from renderer.methods.pm import PhotonMapping
 from renderer.methods.sppm import StochasticProgressivePhotonMapping
@@ -48,16 +48,14 @@ def error_curve(cls, ref, seed: int, **params) -> tuple[np.ndarray, np.ndarray]:
         threads=2,
         params={"photons": 4096, "spp_per_iteration": 16, **params},
     )
-    mse, images, previous = [], [], 0.0
-    for i in range(BUDGETS[-1]):
-        method.run_iteration(i)
-        total = method.image() * (i + 1)
-        images.append(total - previous)
-        previous = total
-        if i + 1 in BUDGETS:
-            mse.append(((method.image() - reference_estimate.mean) ** 2)[mask].mean() - noise)
-    assert method.stats()["nonfinite"] == 0
-    return np.array(mse), np.stack(images)
+    mse = []
+
+    def measure(n, running):
+        if n in BUDGETS:
+            mse.append(((running - reference_estimate.mean) ** 2)[mask].mean() - noise)
+
+    images = iteration_images(method, BUDGETS[-1], measure)
+    return np.array(mse), images
 
 
 def slope(mse: np.ndarray) -> float:

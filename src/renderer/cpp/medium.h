@@ -192,27 +192,47 @@ inline double grid_sigma_t(const Medium &m, const Vec3 &p, MediumStats &stats) {
     return m.grid_sigma * m.grid.density_local(m.grid.to_local(p));
 }
 
+// The optical depth to the next tentative collision, carried across majorant cells:
+// one exponential per collision, drawn when first needed, and what is left of it at a
+// cell boundary carries into the next cell (memoryless: the remainder is again
+// Exp(1)). A cell the flight passes costs a multiply and a compare, not a logarithm.
+class CarriedDepth {
+public:
+    // Moves t in [t, t1), at `rate` > 0, to the next collision (true), or to t1 with the
+    // cell's optical depth used up (false).
+    bool next_collision(double &t, double t1, double rate, Sampler &rng) {
+        if (left_ < 0) left_ = exponential_depth(rng.next());
+        double rest = rate * (t1 - t);
+        if (left_ < rest) {
+            double hit = t + left_ / rate;
+            if (hit < t1) {
+                t = hit;
+                left_ = -1;
+                return true;
+            }
+            left_ = rest;  // rounding put the collision on the cell's end: pass with 0 left
+        }
+        left_ -= rest;
+        t = t1;
+        return false;
+    }
+
+private:
+    double left_ = -1;  // negative: not drawn yet
+};
+
 // Tentative collisions over [0, tmax) at each cell's majorant rate. visit(t, maj)
-// returns false to stop. One exponential majorant optical depth is drawn per
-// collision and what is left of it carries across cell boundaries (memoryless:
-// the remainder is again Exp(1)), so a cell the flight passes costs no logarithm.
+// returns false to stop.
 template <typename Visit>
 void tentative_collisions(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax, Sampler &rng,
                           Visit &&visit) {
-    double depth = exponential_depth(rng.next());  // majorant optical depth to the next collision
+    CarriedDepth depth;
     traverse_majorants(m, o, d, tmax, [&](double t0, double t1, double maj) {
         if (maj <= 0) return true;
         double t = t0;
-        while (true) {
-            double rest = maj * (t1 - t);  // the cell's optical depth ahead of t
-            if (depth >= rest) {
-                depth -= rest;
-                return true;
-            }
-            t += depth / maj;
+        while (depth.next_collision(t, t1, maj, rng))
             if (!visit(t, maj)) return false;
-            depth = exponential_depth(rng.next());
-        }
+        return true;
     });
 }
 
@@ -375,7 +395,7 @@ inline RGB transmittance(const Medium &m, const Vec3 &o, const Vec3 &d, double t
             return RGB(std::exp(-tau));
         }
         case Estimator::Residual: {
-            double depth = exponential_depth(rng.next());
+            CarriedDepth depth;  // of the residual rate
             traverse_cells(m, o, d, tmax, [&](double t0, double t1, double maj, double minor) {
                 if (maj <= 0) return true;
                 tr *= std::exp(-minor * (t1 - t0));  // the control, in closed form
@@ -384,18 +404,12 @@ inline RGB transmittance(const Medium &m, const Vec3 &o, const Vec3 &d, double t
                 // Before this cell's lookups, not after the control: constant cells stay exact.
                 if (!roulette_transmittance(tr, rng)) return false;
                 double t = t0;
-                while (true) {  // the residual's optical depth carries across cells, as above
-                    double rest = residual * (t1 - t);
-                    if (depth >= rest) {
-                        depth -= rest;
-                        return true;
-                    }
-                    t += depth / residual;
-                    depth = exponential_depth(rng.next());
+                while (depth.next_collision(t, t1, residual, rng)) {
                     // (sigma - minor) / residual is the residual's null-collision ratio.
                     tr *= std::max(0.0, maj - grid_sigma_t(m, o + d * t, stats)) / residual;
                     if (!roulette_transmittance(tr, rng)) return false;
                 }
+                return true;
             });
             return RGB(tr);
         }

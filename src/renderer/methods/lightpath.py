@@ -46,8 +46,7 @@ def locate_media(
         return result
     ids = _medium_names(scene)
     tri = native.triangles
-    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    normals = _unit_normals(native)
     inside, outside, named = _triangle_media(native, scene, ids)
     eps = 1e-5 * float(np.ptp(tri.reshape(-1, 3), axis=0).max())
     batch = RayBatch(n)
@@ -72,6 +71,12 @@ def locate_media(
         pending, tfar = pending[~is_named], tfar[~is_named]
         origin[pending] += dirs[pending] * (tfar[:, None] + eps)
     return result
+
+
+def _unit_normals(native: NativeScene) -> np.ndarray:
+    tri = native.triangles
+    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    return normals / np.linalg.norm(normals, axis=1, keepdims=True)
 
 
 def _per_triangle(native: NativeScene, scene: Scene, values: list) -> np.ndarray:
@@ -109,10 +114,12 @@ def emission_media(native: NativeScene, tracer: EmbreeTracer, scene: Scene, seed
     has no shape naming its fog; a smoke grid with no shape around it lets the sun's paths
     start in the smoke, outside its box). A route that an opaque surface naming no medium
     ends first decides nothing (light cannot pass there, and the medium on its far side is
-    not the camera's by any rule): a directional light is judged by the decided routes from
-    points spread over its disk, by majority (the sun outside a fog-filled room with windows
-    is reached through the windows, whose exterior is vacuum); where no route decides, the
-    route is followed through such surfaces, as before.
+    not the camera's by any rule): a directional light is judged by the routes from a fixed
+    lattice of points over its disk, each deciding route voting for the camera's medium or
+    for the medium on its side of the first shape naming one (the sun outside a fog-filled
+    room with windows is reached through the windows, whose exterior is vacuum); where no
+    route decides, and for the one route of any other light, the route is followed through
+    such surfaces.
     """
     rng = np.random.default_rng(seed)
     tri = native.triangles
@@ -154,31 +161,34 @@ def emission_media(native: NativeScene, tracer: EmbreeTracer, scene: Scene, seed
         # in the camera's medium, by the same transition rule.
         camera_medium = _medium_names(scene)[scene.camera.medium]
         if len(emitting):
-            same = _shares_camera_medium(_camera_routes(native, tracer, scene, start), axis=None)
-            per_triangle[emitting[same]] = camera_medium
+            outcome, _ = _camera_routes(native, tracer, scene, start)
+            per_triangle[emitting[_route_shares_camera_medium(outcome)]] = camera_medium
         for i, pos in enumerate(point_positions):
             if pos is None:  # directional: routes from points spread over its disk
-                points = _sun_disk_points(native, scene.lights[i].direction, rng)
-            else:
-                points = pos[None]
-            routes = _camera_routes(native, tracer, scene, points)
-            if _shares_camera_medium(routes[None], axis=1)[0]:
+                outcome, side = _camera_routes(
+                    native, tracer, scene, _sun_disk_points(native, scene.lights[i].direction)
+                )
+                per_light[lights_area + i] = _disk_medium(outcome, side, camera_medium)
+            elif _route_shares_camera_medium(_camera_routes(native, tracer, scene, pos[None])[0])[
+                0
+            ]:
                 per_light[lights_area + i] = camera_medium
     return per_triangle, per_light
 
 
 # Points on a directional light's disk whose routes to the camera vote on its medium.
-_SUN_PROBES = 256
+_SUN_PROBES = 1024
 
 # Route outcomes (_camera_routes): which medium the point is in, as far as its straight
 # route to the camera tells.
 _CROSSES_NAMED, _REACHES_CAMERA, _ENDS_OPAQUE, _ONLY_OPAQUE_TO_CAMERA = 0, 1, 2, 3
 
 
-def _sun_disk_points(native: NativeScene, direction, rng: np.random.Generator) -> np.ndarray:
-    """Points spread over the disk a directional light's paths start on (cpp/lightpath.cpp):
-    radius 1.01 scene radii, centred that far from the core's scene centre against the
-    direction of travel, perpendicular to it. The first point is the centre."""
+def _sun_disk_points(native: NativeScene, direction) -> np.ndarray:
+    """Points spread evenly over the disk a directional light's paths start on
+    (cpp/lightpath.cpp): radius 1.01 scene radii, centred that far from the core's scene
+    centre against the direction of travel, perpendicular to it. A fixed sunflower
+    lattice, the same for every seed; the first point is the centre."""
     core = native.core
     d = np.asarray(direction, np.float64)
     d = d / np.linalg.norm(d)
@@ -188,38 +198,54 @@ def _sun_disk_points(native: NativeScene, direction, rng: np.random.Generator) -
     s = np.cross(d, helper)
     s /= np.linalg.norm(s)
     t = np.cross(d, s)
-    r = radius * np.sqrt(rng.random(_SUN_PROBES - 1))
-    phi = 2 * np.pi * rng.random(_SUN_PROBES - 1)
+    k = np.arange(_SUN_PROBES - 1)
+    r = radius * np.sqrt((k + 0.5) / (_SUN_PROBES - 1))
+    phi = k * np.pi * (3 - np.sqrt(5))  # the golden angle
     ring = centre + (r * np.cos(phi))[:, None] * s + (r * np.sin(phi))[:, None] * t
     return np.vstack([centre[None], ring])
 
 
-def _shares_camera_medium(routes: np.ndarray, axis: int | None) -> np.ndarray:
-    """Whether lights share the camera's medium from their routes' outcomes: the majority
-    of the routes that decide (reach the camera or cross a named shape first); with none
-    deciding, whether the route reaches the camera when opaque unnamed surfaces are passed.
-    axis=None: one route per light; axis=1: a row of routes per light."""
-    routes = np.atleast_2d(routes) if axis == 1 else routes[:, None]
-    reach = (routes == _REACHES_CAMERA).sum(axis=1)
-    cross = (routes == _CROSSES_NAMED).sum(axis=1)
-    decided = reach + cross > 0
-    undecided_reach = routes[:, 0] == _ONLY_OPAQUE_TO_CAMERA
-    return np.where(decided, reach > cross, undecided_reach)
+def _route_shares_camera_medium(outcome: np.ndarray) -> np.ndarray:
+    """A light judged by its one route: it shares the camera's medium where the route reaches
+    the camera, passing only surfaces that name no medium (opaque ones too: with one route
+    there is nothing better to go by)."""
+    return (outcome == _REACHES_CAMERA) | (outcome == _ONLY_OPAQUE_TO_CAMERA)
+
+
+def _disk_medium(outcome: np.ndarray, side: np.ndarray, camera_medium: int) -> int:
+    """The medium of a directional light's disk from its points' routes (the first one from
+    the centre). Routes that decide vote: one reaching the camera for the camera's medium,
+    one first crossing a shape that names a medium for the medium on the disk's side of it;
+    the majority wins (a tie goes to the smaller index, vacuum first). Routes an opaque
+    surface naming no medium ends do not vote; if none votes, the centre's route followed
+    through such surfaces decides between the camera's medium and vacuum."""
+    votes = np.concatenate(
+        [
+            np.full((outcome == _REACHES_CAMERA).sum(), camera_medium),
+            side[outcome == _CROSSES_NAMED],
+        ]
+    )
+    if votes.size:
+        return int(_majority(votes[:, None].astype(np.int32))[0])
+    return camera_medium if outcome[0] == _ONLY_OPAQUE_TO_CAMERA else -1
 
 
 def _camera_routes(
     native: NativeScene, tracer: EmbreeTracer, scene: Scene, points: np.ndarray
-) -> np.ndarray:
-    """Outcome of the straight route from each point to the camera: _CROSSES_NAMED where
-    it first crosses a shape naming a medium; _REACHES_CAMERA where it crosses only null
-    or dielectric shapes naming none; otherwise an opaque unnamed surface comes first, and
-    the route, followed through such surfaces, either crosses a named shape
-    (_ENDS_OPAQUE) or not (_ONLY_OPAQUE_TO_CAMERA)."""
+) -> tuple[np.ndarray, np.ndarray]:
+    """Outcome of the straight route from each point to the camera, and the medium on the
+    point's side of the first shape naming a medium it crosses (-1 if none): _CROSSES_NAMED
+    where it crosses such a shape first; _REACHES_CAMERA where it crosses only null or
+    dielectric shapes naming none; otherwise an opaque unnamed surface comes first, and the
+    route, followed through such surfaces, either crosses a named shape (_ENDS_OPAQUE) or
+    not (_ONLY_OPAQUE_TO_CAMERA)."""
     n = len(points)
     outcome = np.full(n, _REACHES_CAMERA, np.int8)
+    side = np.full(n, -1, np.int32)
     if n == 0:
-        return outcome
-    _, _, named = _triangle_media(native, scene, _medium_names(scene))
+        return outcome, side
+    inside, outside, named = _triangle_media(native, scene, _medium_names(scene))
+    normals = _unit_normals(native)
     passable_types = {"null", "dielectric"}
     passable = _per_triangle(
         native, scene, [scene.materials[s.material].type in passable_types for s in scene.shapes]
@@ -243,9 +269,11 @@ def _camera_routes(
         hit = prim >= 0
         crossed = np.zeros(m, bool)
         crossed[hit] = named[prim[hit]]
-        outcome[pending[crossed]] = np.where(
-            blocked[pending[crossed]], _ENDS_OPAQUE, _CROSSES_NAMED
-        )
+        first = pending[crossed]
+        outcome[first] = np.where(blocked[first], _ENDS_OPAQUE, _CROSSES_NAMED)
+        at = prim[crossed]
+        front = np.einsum("ij,ij->i", d[crossed], normals[at]) < 0  # arriving from outside
+        side[first] = np.where(front, outside[at], inside[at])
         opaque = np.zeros(m, bool)
         opaque[hit] = ~passable[prim[hit]]
         blocked[pending[opaque & ~crossed]] = True
@@ -253,7 +281,7 @@ def _camera_routes(
         origin[pending[onward]] += d[onward] * (tfar[:m][onward, None] + eps)
         pending = pending[onward]
     outcome[(outcome == _REACHES_CAMERA) & blocked] = _ONLY_OPAQUE_TO_CAMERA
-    return outcome
+    return outcome, side
 
 
 def _majority(votes: np.ndarray) -> np.ndarray:
