@@ -32,12 +32,13 @@ def convergence_svg(
     ref_error: float | None = None,
 ) -> str:
     """Mean error over seeds vs mean render time per method, min-max band over seeds,
-    fitted slope in the legend, and the reference's own error as a dashed line. Runs
-    whose error cannot be drawn on a log axis (NaN, e.g. 1 - SSIM of images under 11
-    pixels, or exactly 0) are left out; with none left the figure says so."""
+    fitted slope in the legend, and the reference's own error as a dashed line. Runs whose
+    error is undefined (NaN, e.g. 1 - SSIM of images under 11 pixels) are left out; an error
+    of exactly 0 counts in the means, and only means above 0 are drawn (log axis). With
+    nothing to draw the figure says so."""
     values = pd.to_numeric(runs[metric], errors="coerce")
-    runs = runs[np.isfinite(values) & (values > 0)]
-    if runs.empty:
+    runs = runs[np.isfinite(values)]
+    if not (runs[metric] > 0).any():
         return _no_data_svg(title, "no finite positive values to plot on a log scale")
     fig, ax = plt.subplots(figsize=(6.4, 4.2), dpi=100)
     for method, d in runs.groupby("method", sort=True):
@@ -46,6 +47,8 @@ def convergence_svg(
         g = d.groupby("budget")
         t = g["t"].mean()
         mean, lo, hi = g[metric].mean(), g[metric].min(), g[metric].max()
+        drawn = mean > 0
+        t, mean, lo, hi = t[drawn], mean[drawn], lo[drawn].where(lo[drawn] > 0), hi[drawn]
         fit = fit_slope(d["t"].to_numpy(), d[metric].to_numpy())
         slope = f"{fit.slope:+.2f}" if math.isfinite(fit.slope) else "n/a"
         c = colours.get(method, None)
