@@ -41,36 +41,65 @@ def locate_media(
     the probe enters it from the normal side, else its interior.
     """
     n = len(points)
-    result = np.full(n, -1, np.int32)
     if n == 0 or not scene.media:
-        return result
-    ids = _medium_names(scene)
-    tri = native.triangles
+        return np.full(n, -1, np.int32)
+    _, side, _ = _walk_to_named_shape(native, tracer, scene, points, directions, np.full(n, 1e30))
+    return side
+
+
+def _walk_to_named_shape(
+    native: NativeScene,
+    tracer: EmbreeTracer,
+    scene: Scene,
+    points: np.ndarray,
+    directions: np.ndarray,
+    lengths: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Straight rays from `points` (length `lengths`) walked through every surface naming no
+    medium up to the first shape that names one. Per ray: whether one was reached; the
+    medium on the ray's starting side of it (its exterior when the ray enters it from the
+    normal side, else its interior; -1 where none was reached); and whether an opaque
+    surface (neither null nor dielectric) naming no medium came first."""
+    n = len(points)
+    crossed = np.zeros(n, bool)
+    side = np.full(n, -1, np.int32)
+    opaque_first = np.zeros(n, bool)
+    inside, outside, named = _triangle_media(native, scene, _medium_names(scene))
     normals = _unit_normals(native)
-    inside, outside, named = _triangle_media(native, scene, ids)
-    eps = 1e-5 * float(np.ptp(tri.reshape(-1, 3), axis=0).max())
-    batch = RayBatch(n)
+    passable = _per_triangle(
+        native,
+        scene,
+        [scene.materials[s.material].type in ("null", "dielectric") for s in scene.shapes],
+    ).astype(bool)
+    eps = 1e-5 * float(np.ptp(native.triangles.reshape(-1, 3), axis=0).max())
     origin = points.astype(np.float64).copy()
     dirs = directions / np.linalg.norm(directions, axis=1, keepdims=True)
+    left = np.asarray(lengths, np.float64).copy()
+    batch = RayBatch(n)
     pending = np.arange(n)
     for _ in range(_MAX_PROBE_HITS):
         if len(pending) == 0:
             break
         m = len(pending)
-        batch.origins[:m] = origin[pending]
-        batch.directions[:m] = dirs[pending]
-        batch.tmax[:m] = 1e30
+        batch.origins[:m], batch.directions[:m], batch.tmax[:m] = (
+            origin[pending],
+            dirs[pending],
+            left[pending],
+        )
         tfar, prim, _, _ = tracer.intersect(batch, m)
         prim = prim[:m].astype(np.int64)
         hit = prim >= 0
         pending, tfar, prim = pending[hit], tfar[:m][hit], prim[hit]
         is_named = named[prim]
-        front = np.einsum("ij,ij->i", dirs[pending], normals[prim]) < 0
-        done = pending[is_named]
-        result[done] = np.where(front[is_named], outside[prim[is_named]], inside[prim[is_named]])
-        pending, tfar = pending[~is_named], tfar[~is_named]
+        done, at = pending[is_named], prim[is_named]
+        crossed[done] = True
+        front = np.einsum("ij,ij->i", dirs[done], normals[at]) < 0
+        side[done] = np.where(front, outside[at], inside[at])
+        pending, tfar, prim = pending[~is_named], tfar[~is_named], prim[~is_named]
+        opaque_first[pending[~passable[prim]]] = True
         origin[pending] += dirs[pending] * (tfar[:, None] + eps)
-    return result
+        left[pending] -= tfar + eps
+    return crossed, side, opaque_first
 
 
 def _unit_normals(native: NativeScene) -> np.ndarray:
@@ -169,10 +198,10 @@ def emission_media(native: NativeScene, tracer: EmbreeTracer, scene: Scene, seed
                     native, tracer, scene, _sun_disk_points(native, scene.lights[i].direction)
                 )
                 per_light[lights_area + i] = _disk_medium(outcome, side, camera_medium)
-            elif _route_shares_camera_medium(_camera_routes(native, tracer, scene, pos[None])[0])[
-                0
-            ]:
-                per_light[lights_area + i] = camera_medium
+            else:
+                outcome, _ = _camera_routes(native, tracer, scene, pos[None])
+                if _route_shares_camera_medium(outcome)[0]:
+                    per_light[lights_area + i] = camera_medium
     return per_triangle, per_light
 
 
@@ -239,48 +268,18 @@ def _camera_routes(
     dielectric shapes naming none; otherwise an opaque unnamed surface comes first, and the
     route, followed through such surfaces, either crosses a named shape (_ENDS_OPAQUE) or
     not (_ONLY_OPAQUE_TO_CAMERA)."""
-    n = len(points)
-    outcome = np.full(n, _REACHES_CAMERA, np.int8)
-    side = np.full(n, -1, np.int32)
-    if n == 0:
-        return outcome, side
-    inside, outside, named = _triangle_media(native, scene, _medium_names(scene))
-    normals = _unit_normals(native)
-    passable_types = {"null", "dielectric"}
-    passable = _per_triangle(
-        native, scene, [scene.materials[s.material].type in passable_types for s in scene.shapes]
-    ).astype(bool)
-    eps = 1e-5 * float(np.ptp(native.triangles.reshape(-1, 3), axis=0).max())
-    camera = np.asarray(scene.camera.origin, np.float64)
-    origin = points.astype(np.float64).copy()
-    blocked = np.zeros(n, bool)  # an opaque unnamed surface came first
-    batch = RayBatch(n)
-    pending = np.arange(n)
-    for _ in range(_MAX_PROBE_HITS):
-        if len(pending) == 0:
-            break
-        to = camera - origin[pending]
-        dist = np.linalg.norm(to, axis=1)
-        d = to / np.maximum(dist, 1e-300)[:, None]
-        m = len(pending)
-        batch.origins[:m], batch.directions[:m], batch.tmax[:m] = origin[pending], d, dist
-        tfar, prim, _, _ = tracer.intersect(batch, m)
-        prim = prim[:m].astype(np.int64)
-        hit = prim >= 0
-        crossed = np.zeros(m, bool)
-        crossed[hit] = named[prim[hit]]
-        first = pending[crossed]
-        outcome[first] = np.where(blocked[first], _ENDS_OPAQUE, _CROSSES_NAMED)
-        at = prim[crossed]
-        front = np.einsum("ij,ij->i", d[crossed], normals[at]) < 0  # arriving from outside
-        side[first] = np.where(front, outside[at], inside[at])
-        opaque = np.zeros(m, bool)
-        opaque[hit] = ~passable[prim[hit]]
-        blocked[pending[opaque & ~crossed]] = True
-        onward = hit & ~crossed
-        origin[pending[onward]] += d[onward] * (tfar[:m][onward, None] + eps)
-        pending = pending[onward]
-    outcome[(outcome == _REACHES_CAMERA) & blocked] = _ONLY_OPAQUE_TO_CAMERA
+    to = np.asarray(scene.camera.origin, np.float64) - points
+    dist = np.linalg.norm(to, axis=1)
+    directions = to / np.maximum(dist, 1e-300)[:, None]
+    directions[dist == 0] = (0, 0, 1)  # a point at the camera: a route of length 0
+    crossed, side, opaque_first = _walk_to_named_shape(
+        native, tracer, scene, points, directions, dist
+    )
+    outcome = np.where(
+        crossed,
+        np.where(opaque_first, _ENDS_OPAQUE, _CROSSES_NAMED),
+        np.where(opaque_first, _ONLY_OPAQUE_TO_CAMERA, _REACHES_CAMERA),
+    ).astype(np.int8)
     return outcome, side
 
 
