@@ -64,13 +64,15 @@ def ours(method_cls, scene: Scene, iterations: int, seed: int = 1, **params) -> 
     return Estimate(iteration_images(method, iterations))
 
 
-def mitsuba(scene: Scene, passes: int, spp: int, seed: int = 1000) -> Estimate:
-    """Mitsuba volpath images of the same scene, one per seed."""
+def mitsuba(
+    scene: Scene, passes: int, spp: int, seed: int = 1000, integrator: str = "volpath"
+) -> Estimate:
+    """Mitsuba images of the same scene (volpath unless said), one per seed."""
     from renderer.mitsuba_env import import_mitsuba
     from renderer.scene.mitsuba_export import load_mitsuba_scene
 
     mi = import_mitsuba()
-    ms = load_mitsuba_scene(scene)
+    ms = load_mitsuba_scene(scene, integrator)
     images = [
         np.array(mi.render(ms, spp=spp, seed=seed + i), dtype=np.float64) for i in range(passes)
     ]

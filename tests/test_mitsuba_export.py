@@ -21,6 +21,7 @@ from renderer.scene.mitsuba_export import (
     grid_data,
     load_mitsuba_scene,
     phase_dict,
+    reference_integrator,
     to_mitsuba_dict,
 )
 from renderer.scene.model import Phase
@@ -175,6 +176,20 @@ def test_tiny_reference_is_finite():
     assert image.shape == (6, 8, 3) and image.dtype == np.float64
     assert np.all(np.isfinite(image)) and image.mean() > 0
     assert info["passes"] == 1 and info["threads"] == 1
+
+
+def test_references_of_chromatic_media_use_volpathmis():
+    """Grey extinction: volpath. A medium whose extinction differs between channels (juice's):
+    volpathmis, whose renders of it agree with ours where volpath's do not (test_parity)."""
+    assert reference_integrator(load_scene("cbox-fog")) == "volpath"
+    assert reference_integrator(load_scene("cbox")) == "volpath"
+    assert reference_integrator(load_scene("juice")) == "volpathmis"
+    scene = load_scene(
+        "cbox-fog", ["film.width=4", "film.height=4", "media.fog.sigma_t=[0.5, 1, 1]"]
+    )
+    assert to_mitsuba_dict(scene, "volpathmis")["integrator"]["type"] == "volpathmis"
+    _, info = render_reference(scene, spp=2, seed=0, threads=1)
+    assert info["renderer"].endswith(" volpathmis")
 
 
 def test_reference_passes_and_seeds():

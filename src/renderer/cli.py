@@ -126,7 +126,7 @@ def cmd_reference(args: argparse.Namespace) -> int:
     _refuse_overwriting_the_scene(args.scene, [out])
     check_threads(args.threads)
     overrides, _ = _split_sets(args.set, "reference")
-    check_overrides("mitsuba", overrides)  # the reference is Mitsuba's volpath
+    check_overrides("mitsuba", overrides)  # the reference is Mitsuba's (volpath or volpathmis)
     scene = load_scene(args.scene, overrides)
     bar = Progress(None, args.spp, enabled=not args.quiet)
     image, info = render_reference(

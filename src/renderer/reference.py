@@ -1,4 +1,6 @@
-"""Ground truth: Mitsuba 3 ``volpath`` renders of a scene (box filter, same triangles).
+"""Ground truth: Mitsuba 3 renders of a scene (box filter, same triangles) by ``volpath``, or
+by ``volpathmis`` where a medium's extinction differs between channels (see
+``reference_integrator``).
 
 Large sample counts are split into passes of at most 256 spp, each with its own seed, and
 averaged in float64: this bounds memory in the LLVM variant (one lane per sample). Nothing is
@@ -15,7 +17,7 @@ import numpy as np
 
 from renderer.errors import PgiError
 from renderer.mitsuba_env import import_mitsuba, set_threads
-from renderer.scene.mitsuba_export import load_mitsuba_scene
+from renderer.scene.mitsuba_export import load_mitsuba_scene, reference_integrator
 from renderer.scene.model import Scene
 
 MAX_SPP_PER_PASS = 256
@@ -52,7 +54,8 @@ def render_reference(
     if threads is not None:
         set_threads(threads)
     t0 = time.perf_counter()
-    mscene = load_mitsuba_scene(scene)
+    integrator = reference_integrator(scene)
+    mscene = load_mitsuba_scene(scene, integrator)
     t1 = time.perf_counter()
     per_pass = spp_per_pass(scene, spp)
     total = np.zeros((scene.film.height, scene.film.width, 3))
@@ -71,7 +74,7 @@ def render_reference(
     import drjit as dr
 
     info = {
-        "renderer": f"mitsuba {mi.__version__} volpath",
+        "renderer": f"mitsuba {mi.__version__} {integrator}",
         "variant": mi.variant(),
         "passes": k + 1,
         "spp_per_pass": per_pass,
