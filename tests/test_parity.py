@@ -66,7 +66,11 @@ VARIANTS = {
     ),
     # Rayleigh scattering, which no shipped scene uses (its sampling has a chi-square test):
     # our pt with isotropic scattering in its place fails both checks (blocks p = 1e-33).
-    "cbox-fog-rayleigh": ("cbox-fog", ("media.fog.phase={type: rayleigh}",)),
+    # On a wide film: every other case renders a square one.
+    "cbox-fog-rayleigh": (
+        "cbox-fog",
+        ("media.fog.phase={type: rayleigh}", "film.width=44", "film.height=24"),
+    ),
 }
 
 
