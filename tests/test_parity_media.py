@@ -29,7 +29,8 @@ RES = 16
 # error s of the difference of image means detects a bias b with power ~0.99 when
 # (z_limit + 2.33) s <= b. Measured s at 32 spp: smoke 0.74 %, fog-perlin 1.37 %,
 # fog-step 1.28-1.64 %, juice (64 spp) 0.91 %, nested juice in fog (64 spp) 0.99 %,
-# camera in grid 0.61 %, point light in grid 2.9 %.
+# camera in grid 0.61 %, point light in grid 2.9 %, camera in a dielectric tank 1.3 % (128 spp;
+# run at 768).
 IMAGES = 32
 SPP = {"smoke": 128, "fog-perlin": 320, "fog-step": 320, "juice": 320}
 CASES = [
@@ -75,7 +76,10 @@ def test_blocks_match_mitsuba(estimates):
 # - nested: the juice (dielectric boundary, interior juice, exterior fog) standing in a box
 #   of homogeneous fog (null boundary enclosing the light);
 # - camera inside a grid medium (fog-step with the camera in the box, camera.medium set);
-# - point light inside a grid medium (fog-step lit by a point light instead of the area light).
+# - point light inside a grid medium (fog-step lit by a point light instead of the area light);
+# - camera inside a medium bounded by a dielectric (a water tank filling most of the box,
+#   camera.medium set): its rays leave the medium through refraction, and an IOR below 1
+#   (total internal reflection from outside instead of inside).
 NESTED = {
     "include": [str(SCENES / "cbox" / "box.yaml")],
     "integrator": {"max_depth": 16, "rr_depth": 5},
@@ -93,9 +97,24 @@ NESTED = {
          "transform": [{"scale": [0.22, 0.7, 0.22]}, {"translate": [-0.35, -0.999, 0.55]}]},
     ],
 }  # fmt: skip
-# name: (base scene or None for NESTED, overrides, spp per image, the bias that must fail)
+TANK = {
+    "include": [str(SCENES / "cbox" / "box.yaml")],
+    "integrator": {"max_depth": 12, "rr_depth": 5},
+    "camera": {"origin": [0, 0, 0.5], "target": [0, 0, 0], "up": [0, 1, 0], "fov": 70,
+               "medium": "water"},
+    "media": {"water": {"type": "homogeneous", "sigma_t": 0.2, "albedo": 0.9,
+                        "phase": {"type": "hg", "g": 0.4}}},
+    "materials": {"water-surface": {"type": "dielectric", "ior": 1.33}},
+    "shapes": [
+        {"name": "tank", "type": "cube", "material": "water-surface", "interior": "water",
+         "transform": [{"scale": [0.9, 0.9, 0.6]}, {"translate": [0, -0.05, 0.2]}]},
+    ],
+}  # fmt: skip
+# name: (base scene, or a scene document, overrides, spp per image, the bias that must fail)
 CONFIGS = {
-    "nested-juice-in-fog": (None, (), 384, 0.03),
+    "nested-juice-in-fog": (NESTED, (), 384, 0.03),
+    "camera-in-dielectric-tank": (TANK, (), 768, 0.04),
+    "camera-in-tank-ior-below-1": (TANK, ("materials.water-surface.ior=0.7",), 768, 0.04),
     "camera-in-grid": ("fog-step", ("camera.origin=[0.2, 0.1, 0.8]", "camera.medium=fog"), 96,
                        0.03),
     "point-light-in-grid": (
@@ -114,10 +133,10 @@ CONFIGS = {
 def config_estimates(request, tmp_path_factory):
     name = request.param
     base, overrides, spp, _ = CONFIGS[name]
-    if base is None:
+    if isinstance(base, dict):
         path = tmp_path_factory.mktemp(name) / "scene.yaml"
-        path.write_text(yaml.safe_dump(NESTED))
-        scene = load_scene(path, [f"film.width={RES}", f"film.height={RES}"])
+        path.write_text(yaml.safe_dump(base))
+        scene = load_scene(path, [f"film.width={RES}", f"film.height={RES}", *overrides])
     else:
         scene = load_small(base, RES, RES, overrides)
     return name, ours(PathTracing, scene, IMAGES, spp_per_wave=spp), mitsuba(scene, IMAGES, spp)
