@@ -192,6 +192,16 @@ def test_references_of_chromatic_media_use_volpathmis():
     assert info["renderer"].endswith(" volpathmis")
 
 
+def test_extinction_zero_in_some_channels_is_refused_for_mitsuba():
+    """Neither Mitsuba integrator renders it (volpath: NaN; volpathmis: 14 % of our blue), so
+    the export refuses it by its key; a small positive value in its place is accepted."""
+    zero = load_scene("cbox-fog", ["media.fog.sigma_t=[0, 1, 3]"])
+    with pytest.raises(PgiError, match=r"media\.fog\.sigma_t = \[0\.0, 1\.0, 3\.0\].*1e-7"):
+        to_mitsuba_dict(zero)
+    to_mitsuba_dict(load_scene("cbox-fog", ["media.fog.sigma_t=[1e-7, 1, 3]"]))
+    to_mitsuba_dict(load_scene("cbox-fog", ["media.fog.sigma_t=0"]))
+
+
 def test_reference_passes_and_seeds():
     big = load_scene("cbox")
     assert spp_per_pass(big, 10_000) == 256 and spp_per_pass(big, 7) == 7

@@ -201,6 +201,15 @@ def to_mitsuba_dict(scene: Scene, integrator: str = "volpath") -> dict[str, Any]
     """A dict for ``mi.load_dict`` describing ``scene`` for Mitsuba's ``integrator`` (volpath,
     or volpathmis: the two take the same parameters)."""
     mi = import_mitsuba()
+    for name, m in scene.media.items():
+        if 0 in m.sigma_t and any(m.sigma_t):
+            # Measured on cbox-fog with sigma_t [0, 1, 3]: volpath returns NaN everywhere, and
+            # volpathmis 49 % of our green and 14 % of our blue (1e-7 in place of 0 agrees).
+            raise PgiError(
+                f"{scene.path}: media.{name}.sigma_t = {list(m.sigma_t)}: Mitsuba cannot "
+                "render extinction that is zero in some channels but not all; give those "
+                "channels a small positive value (e.g. 1e-7)"
+            )
     media = {name: mi.load_dict(_medium(mi, m)) for name, m in scene.media.items()}
     bsdfs = {name: mi.load_dict(_bsdf(m)) for name, m in scene.materials.items()}
     cam = scene.camera
