@@ -221,6 +221,7 @@ def report(tmp_path_factory: pytest.TempPathFactory) -> Path:
     truth[8:12, 10:16] = 5.0
     for k in (0, 1):
         write_exr(wd / f"half{k}.exr", truth * (1 + 0.01 * rng.standard_normal(truth.shape)))
+        write_json(wd / f"half{k}.json", {"renderer": "mitsuba 3.9.1 volpathmis", "spp": 4})
     merge_reference(wd / "half0.exr", wd / "half1.exr", wd / "ref.exr", wd / "ref.json")
     methods, budgets = ["pt", "lt"], ["1", "2"]
     csvs, snaps = [], {}
@@ -295,6 +296,7 @@ def test_report_files(report: Path) -> None:
     assert "Reference error removed" in index and "ref. error removed" in page
     assert 'id="viewer"' in page and 'src="data/toy.js"' in page
     assert "A toy scene for the report test." in page and "bdpt (not in this study)" in page
+    assert "Mitsuba 3.9.1 volpathmis, two independent halves of 4 spp each" in page
     assert re.search(r"<b>Won</b> at [^:]+: (pt \(as expected|lt \(not among the expected)", page)
     winners = index[index.index("Best method per scene") : index.index("Overview:")]
     assert winners.count('class="late"') == 1 and ">at 1.3 s<" in winners  # pt at 1 s

@@ -187,8 +187,9 @@ def build_scene_page(spec: dict[str, Any]) -> None:
     # reference quality
     body.append("<h2>Reference</h2>")
     spp = ref_info.get("spp_per_half") or []
+    renderer = ref_info.get("renderer") or "Mitsuba 3"
     body.append(
-        "<p>Mitsuba 3 volpath, two independent halves"
+        f"<p>{e(renderer[:1].upper() + renderer[1:])}, two independent halves"
         + (f" of {e(str(spp[0]))} spp each" if spp and spp[0] else "")
         + f". Half-vs-half relMSE {T.fmt(ref_info.get('halves_relmse'))}; estimated relMSE of "
         f"the reference (their average) <b>{T.fmt(ref_info.get('ref_relmse'))}</b> "
