@@ -204,7 +204,7 @@ def to_mitsuba_dict(scene: Scene, integrator: str = "volpath") -> dict[str, Any]
     for name, m in scene.media.items():
         if 0 in m.sigma_t and any(m.sigma_t):
             # Measured on cbox-fog with sigma_t [0, 1, 3]: volpath returns NaN everywhere, and
-            # volpathmis 49 % of our green and 14 % of our blue (1e-7 in place of 0 agrees).
+            # volpathmis 49 % of our green and 14 % of our blue (with 1e-7 for 0 it agrees).
             raise PgiError(
                 f"{scene.path}: media.{name}.sigma_t = {list(m.sigma_t)}: Mitsuba cannot "
                 "render extinction that is zero in some channels but not all; give those "
