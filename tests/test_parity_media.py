@@ -79,7 +79,9 @@ def test_blocks_match_mitsuba(estimates):
 # - point light inside a grid medium (fog-step lit by a point light instead of the area light);
 # - camera inside a medium bounded by a dielectric (a water tank filling most of the box,
 #   camera.medium set): its rays leave the medium through refraction, and an IOR below 1
-#   (total internal reflection from outside instead of inside).
+#   (total internal reflection from outside instead of inside);
+# - a density grid smaller than the null box that holds its medium (fog-step's grid shrunk to
+#   the middle of the box): the medium is empty between the grid and the box.
 NESTED = {
     "include": [str(SCENES / "cbox" / "box.yaml")],
     "integrator": {"max_depth": 16, "rr_depth": 5},
@@ -115,6 +117,12 @@ CONFIGS = {
     "nested-juice-in-fog": (NESTED, (), 384, 0.03),
     "camera-in-dielectric-tank": (TANK, (), 768, 0.04),
     "camera-in-tank-ior-below-1": (TANK, ("materials.water-surface.ior=0.7",), 768, 0.04),
+    "grid-smaller-than-its-box": (
+        "fog-step",
+        ("media.fog.transform=[{scale: [1.2, 1.0, 1.2]}, {translate: [-0.6, -0.6, -0.5]}]",),
+        320,
+        0.03,
+    ),
     "camera-in-grid": ("fog-step", ("camera.origin=[0.2, 0.1, 0.8]", "camera.medium=fog"), 96,
                        0.03),
     "point-light-in-grid": (
