@@ -62,9 +62,9 @@ def pt_shadow_rays(name: str, n_rays: int, seed: int, res: int = 32) -> list[Ray
     method = PathTracing(scene, seed=seed, threads=2, params={"spp_per_wave": 1})
     if method.kernel.shadows_any_hit:
         raise SystemExit(f"{name}: no null boundaries, hence no media to measure")
-    null = np.concatenate(
-        [np.full(len(s.faces), scene.materials[s.material].type == "null") for s in scene.shapes]
-    )[method.native.kept]
+    null = method.native.per_triangle(
+        scene, [scene.materials[s.material].type == "null" for s in scene.shapes]
+    )
     tracer, rays = method.tracer, []
     intersect = tracer.intersect
 

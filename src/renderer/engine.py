@@ -33,6 +33,12 @@ class NativeScene:
     def dropped_triangles(self) -> int:
         return int((~self.kept).sum())
 
+    def per_triangle(self, scene: Scene, values: list) -> np.ndarray:
+        """One value per shape of ``scene``, repeated over the shape's triangles that were
+        kept (the core's and Embree's triangle order)."""
+        pairs = zip(scene.shapes, values, strict=True)
+        return np.concatenate([np.full(len(s.faces), v) for s, v in pairs])[self.kept]
+
 
 def camera_basis(camera: Camera, film: Film) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """forward, right, up: right/up scaled to the film's half-extent at unit distance.

@@ -66,8 +66,7 @@ def _walk_to_named_shape(
     opaque_first = np.zeros(n, bool)
     inside, outside, named = _triangle_media(native, scene, _medium_names(scene))
     normals = _unit_normals(native)
-    passable = _per_triangle(
-        native,
+    passable = native.per_triangle(
         scene,
         [scene.materials[s.material].type in ("null", "dielectric") for s in scene.shapes],
     ).astype(bool)
@@ -108,25 +107,17 @@ def _unit_normals(native: NativeScene) -> np.ndarray:
     return normals / np.linalg.norm(normals, axis=1, keepdims=True)
 
 
-def _per_triangle(native: NativeScene, scene: Scene, values: list) -> np.ndarray:
-    """One value per shape, repeated over the shape's native triangles (the ones
-    build_native_scene kept)."""
-    pairs = zip(scene.shapes, values, strict=True)
-    per = np.concatenate([np.full(len(s.faces), v) for s, v in pairs])
-    return per[native.kept]
-
-
 def _triangle_media(native: NativeScene, scene: Scene, ids: dict[str, int]):
     """Interior, exterior and 'names a medium' per native triangle (same order as the core)."""
     shapes = scene.shapes
-    inside = _per_triangle(
-        native, scene, [-1 if s.interior is None else ids[s.interior] for s in shapes]
+    inside = native.per_triangle(
+        scene, [-1 if s.interior is None else ids[s.interior] for s in shapes]
     )
-    outside = _per_triangle(
-        native, scene, [-1 if s.exterior is None else ids[s.exterior] for s in shapes]
+    outside = native.per_triangle(
+        scene, [-1 if s.exterior is None else ids[s.exterior] for s in shapes]
     )
-    named = _per_triangle(
-        native, scene, [s.interior is not None or s.exterior is not None for s in shapes]
+    named = native.per_triangle(
+        scene, [s.interior is not None or s.exterior is not None for s in shapes]
     )
     return inside.astype(np.int32), outside.astype(np.int32), named.astype(bool)
 
@@ -294,7 +285,7 @@ def _majority(votes: np.ndarray) -> np.ndarray:
 
 def _emitting_triangles(native: NativeScene, scene: Scene) -> np.ndarray:
     emits = [s.emission is not None for s in scene.shapes]
-    return np.flatnonzero(_per_triangle(native, scene, emits))
+    return np.flatnonzero(native.per_triangle(scene, emits))
 
 
 class LightPaths:
