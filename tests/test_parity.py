@@ -7,7 +7,7 @@ probability about ALPHA = 1e-4 per check when both renderers are right.
 
 Power (measured at these sample counts, our images scaled by 0.99, 0.98, 0.97): the image
 mean check fails a 2 % bias on every case but the two max-depth variants, and 3 % on every
-case (test_a_three_percent_bias_fails); the 4x4 block check fails 1 % on cbox and
+case (test_a_three_percent_bias_fails); the 4x4 block check fails 1 % on cbox, cbox-spot-edges and
 cbox-fog-depth-2, 2 % on all but cbox-fog, cbox-glass and cbox-fog-depth-3, and 3 % on all but
 cbox-fog-depth-3 (p = 0.01 there). Its chi-square takes each block's colour as one vector
 (parity.vector_chi2): a scale error also shows in the colour directions, whose noise is small.
@@ -37,6 +37,7 @@ CASES = [
     ("cbox-fog-depth-3", 40, 96, 40, 96),
     ("cbox-fog-chromatic", 40, 96, 40, 96),
     ("cbox-fog-rayleigh", 40, 96, 40, 96),
+    ("cbox-spot-edges", 40, 96, 40, 96),
 ]
 # Conventions no shipped box scene uses: a spot light (cutoff_angle, beam_width and its
 # linear falloff between them), a point light's intensity, and an ideal mirror (the tall box);
@@ -70,6 +71,28 @@ VARIANTS = {
     "cbox-fog-rayleigh": (
         "cbox-fog",
         ("media.fog.phase={type: rayleigh}", "film.width=44", "film.height=24"),
+    ),
+    # Edge cases of the conventions above: a spot with no falloff (beam_width = cutoff_angle),
+    # one lighting a whole hemisphere (cutoff_angle 90), and two mirror squares in the plane
+    # of the camera's view of the floor, one facing the camera and one turned away (Mitsuba's
+    # mirror is one-sided: its back is black). The turned-away square made to face the camera
+    # instead (a two-sided mirror, as seen from there) fails every check (mean p = 1e-66).
+    "cbox-spot-edges": (
+        "cbox",
+        (
+            "shapes[7].emission=0",
+            "materials.mirror={type: mirror}",
+            "shapes[5]={name: mirror-front, type: rectangle, material: mirror, transform: "
+            "[{scale: 0.35}, {rotate: {axis: [1, 0, 0], angle: 35}}, "
+            "{rotate: {axis: [0, 1, 0], angle: 15}}, {translate: [-0.4, -0.1, 0.1]}]}",
+            "shapes[6]={name: mirror-back, type: rectangle, material: mirror, transform: "
+            "[{scale: 0.35}, {rotate: {axis: [1, 0, 0], angle: 215}}, "
+            "{rotate: {axis: [0, 1, 0], angle: -15}}, {translate: [0.4, 0.15, -0.2]}]}",
+            "lights=[{type: spot, position: [-0.4, 0.95, 0.3], target: [-0.3, -1, 0.5], "
+            "intensity: 5, cutoff_angle: 25, beam_width: 25}, {type: spot, "
+            "position: [0.3, 0.97, -0.3], target: [0.3, -1, -0.3], intensity: 1.5, "
+            "cutoff_angle: 90, beam_width: 70}]",
+        ),
     ),
 }
 
