@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -116,8 +117,8 @@ def write_image_and_sidecar(path: str | Path, image: np.ndarray, info: dict) -> 
 
 
 def check_output_path(path: str | Path) -> Path:
-    """An .exr path whose image and sidecar can be written: checked before any work, and
-    without creating anything."""
+    """An .exr path whose image and sidecar can be written: checked before any work, leaving
+    nothing behind (a probe file is created in the nearest existing folder and removed)."""
     out = Path(path)
     if out.suffix.lower() != ".exr":
         raise PgiError(f"-o {path}: the output must be an .exr file")
@@ -131,4 +132,10 @@ def check_output_path(path: str | Path) -> Path:
         raise PgiError(f"-o {path}: {parent} is not a directory")
     if not os.access(parent, os.W_OK):
         raise PgiError(f"-o {path}: cannot write in {parent}")
+    # Permission bits do not tell everything (a root user, read-only or special file systems).
+    try:
+        with tempfile.NamedTemporaryFile(dir=parent, prefix=".pgi-probe-"):
+            pass
+    except OSError as e:
+        raise PgiError(f"-o {path}: cannot write in {parent}: {e.strerror or e}") from None
     return out
