@@ -437,6 +437,18 @@ def test_values_beyond_float32_and_size_limits_are_errors(tmp_path):
     expect_error(far, "media.smoke.transform", "grid's box beyond")
 
 
+def test_a_voxel_too_dense_to_track_is_an_error(tmp_path):
+    """Optical depth across a voxel is bounded (renders used to hang at 1e17 per voxel, where a
+    tracking step rounds to nothing); the longest voxel edge counts, and the transform's scale."""
+    d = np.zeros((2, 4, 2))
+    d[0, 0, 0] = 1e4  # edges 0.5, 0.25, 0.5 in the unit cube: 5e3 optical depths, allowed
+    load_scene(grid_scene(tmp_path, d))
+    path = grid_scene(tmp_path, d, scale=3.0)
+    expect_error(path, "media.smoke", "1.5e\\+04 optical depths across .* at most 10000")
+    path = grid_scene(tmp_path, d, transform=[{"scale": [1, 1, 2.5]}])
+    expect_error(path, "media.smoke", "1.25e\\+04 optical depths across")
+
+
 def test_a_rotated_grid_is_refused_on_load(tmp_path):
     """Mitsuba supports only axis-aligned grids: `pgi validate` says so, not the reference."""
     turn = [{"rotate": {"axis": [0, 0, 1], "angle": 30}}]

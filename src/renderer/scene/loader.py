@@ -54,6 +54,11 @@ MAX_EXTINCTION = 1e30  # sigma_t x scale (x the densest voxel): Mitsuba multipli
 # A voxel value: float32 with headroom (the majorant grid widens its bounds by a relative
 # margin; at the float32 maximum that overflowed to infinity and tracking never advanced).
 MAX_DENSITY = 1e30
+# Optical depth across one voxel of a grid (its longest edge, at the densest voxel). Tracking
+# pays ~1 lookup per unit of majorant optical depth, and past ~1e14 per unit length a step
+# rounds to nothing and a path can collide at one point forever. exp(-1e4) is opaque already;
+# the shipped grids stay below 1.
+MAX_VOXEL_DEPTH = 1e4
 MAX_NOISE_FREQUENCY = 1e6
 MAX_FILM_SIDE = 16384
 REPO_ROOT = Path(__file__).resolve().parents[3]  # src/renderer/scene/loader.py -> repo
@@ -757,6 +762,15 @@ def _medium(val: _Validator, name: str, d: Any) -> Medium:
     corners = np.array([[x, y, z, 1.0] for x in (0, 1) for y in (0, 1) for z in (0, 1)])
     if not np.all(np.abs(corners @ to_world.T)[:, :3] < MAX_COORDINATE):
         val.fail(p + ("transform",), f"places the grid's box beyond +-{MAX_COORDINATE:g}")
+    voxel = float((np.abs(np.diag(linear)) / np.array(density.shape)).max())
+    voxel_depth = max(sigma_t) * scale * float(density.max(initial=0.0)) * voxel
+    if voxel_depth > MAX_VOXEL_DEPTH:
+        val.fail(
+            p,
+            f"the densest voxel is {voxel_depth:.3g} optical depths across (sigma_t x scale x "
+            f"density x voxel edge {voxel:.3g}); at most {MAX_VOXEL_DEPTH:g} can be tracked, "
+            f"and it is opaque long before: lower scale",
+        )
     return Medium(name, kind, sigma_t, albedo, scale, phase, density, to_world, source)
 
 
