@@ -201,6 +201,12 @@ def test_bad_scene_gives_one_line_error_and_no_output(tmp_path, kind):
             "two times share a file name",
         ),
         (["render", "cbox", "--method", "pt"], "required: -o/--output"),
+        (["render", "cbox", "--method", "pt", "--spp", "1.5", "-o", "x.exr"], "an integer"),
+        # a section of the wrong type is a mistake, not an empty section
+        (
+            ["render", "cbox", "--method", "pt", "--spp", "1", "--set", "lights=0", "-o", "x.exr"],
+            "lights: expected a list of lights, got 0",
+        ),
     ],
 )
 def test_user_mistakes_are_one_line_errors(tmp_path, args, expected):

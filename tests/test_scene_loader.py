@@ -231,6 +231,28 @@ def test_hg_g_out_of_range(tmp_path, g):
     expect_error(write(tmp_path, edit(media={"fog": fog})), "media.fog.phase.g", "> -1 and < 1")
 
 
+@pytest.mark.parametrize(
+    "override, key",
+    [
+        ("media.fog.phase.g=0.99999999", "media.fog.phase.g"),
+        ("camera.fov=179.9999999", "camera.fov"),
+        ("materials.glass.ior=1.0e-50", "materials.glass.ior"),
+    ],
+)
+def test_values_that_leave_their_range_in_float32_are_errors(tmp_path, override, key):
+    """In range as written, out of it in Mitsuba's float32 (g = 1 fails to load there, a field
+    of view of 180 degrees renders black)."""
+    fog = {"type": "homogeneous", "sigma_t": 1, "albedo": 0.5, "phase": {"type": "hg", "g": 0.5}}
+    doc = edit(media={"fog": fog})
+    doc["materials"]["glass"] = {"type": "dielectric", "ior": 1.5}
+    expect_error(write(tmp_path, doc), key, "in float32, as Mitsuba stores it", [override])
+
+
+def test_a_spot_whose_beam_equals_its_cutoff_is_not_refused_in_float32(tmp_path):
+    spot = "lights=[{type: spot, position: [0, 1, 0], target: [0, 0, 0], intensity: 1, "
+    load_scene(write(tmp_path, BASE), [spot + "cutoff_angle: 0.1, beam_width: 0.1}]"])
+
+
 @pytest.mark.parametrize("ior", [0, -1.5])
 def test_ior_not_positive(tmp_path, ior):
     doc = edit(
@@ -566,8 +588,11 @@ def test_mesh_files_that_hold_no_usable_triangles(tmp_path):
     (tmp_path / "oob.ply").write_text(header + "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n")
     (tmp_path / "words.obj").write_text("hello\n")
     (tmp_path / "noise.ply").write_bytes(np.random.default_rng(0).bytes(300))
+    # Mitsuba's cause, not the plugin context it wraps it in (which filled the message)
+    (tmp_path / "short.ply").write_text(header + "end_header\n0 0 0\n1 0 0\n3 0 1 2\n")
     cases = [("oob.ply", "refers to vertex 7, but there are 3"), ("words.obj", "no triangles"),
-             ("noise.ply", "cannot load")]  # fmt: skip
+             ("noise.ply", "cannot load"),
+             ("short.ply", 'short.ply: could not parse "int" value for field')]  # fmt: skip
     for name, pattern in cases:
         doc = edit(shapes=[*BASE["shapes"], {"type": "mesh", "file": name, "material": "white"}])
         expect_error(write(tmp_path, doc, f"{name}.yaml"), "shapes[2].file", pattern)
@@ -580,16 +605,22 @@ def test_mesh_files_that_hold_no_usable_triangles(tmp_path):
         (np.array([1 + 2j, 3]), "expected numbers"),
         (np.array([True, False]), "expected numbers"),
         (b"", "cannot read"),
+        (np.ones((3, 3)), "a table of shape \\[3, 3\\]"),
+        ("0 1\n90 2\n180 5\n", "a table of shape \\[3, 2\\]"),  # angles beside values
+        ("", "holds no numbers"),
     ],
 )
 def test_tabulated_phase_files_of_the_wrong_kind(tmp_path, content, pattern):
-    file = tmp_path / "table.npy"
-    if isinstance(content, bytes):
+    name = "table.txt" if isinstance(content, str) else "table.npy"
+    file = tmp_path / name
+    if isinstance(content, str):
+        file.write_text(content)
+    elif isinstance(content, bytes):
         file.write_bytes(content)
     else:
         np.save(file, content)
     fog = "media.fog={type: homogeneous, sigma_t: 1, albedo: 0.5, "
-    fog += "phase: {type: tabulated, file: table.npy}}"
+    fog += f"phase: {{type: tabulated, file: {name}}}}}"
     expect_error(write(tmp_path, BASE), "media.fog.phase.file", pattern, [fog])
 
 

@@ -29,7 +29,8 @@ def _positive(kind: type):
         try:
             value = kind(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+            want = "an integer" if kind is int else "a number"
+            raise argparse.ArgumentTypeError(f"expected {want}, got {text!r}") from None
         if not 0 < value < math.inf:
             raise argparse.ArgumentTypeError(f"expected a positive, finite value, got {text!r}")
         return value

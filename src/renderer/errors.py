@@ -1,5 +1,6 @@
 """User-facing errors: the CLI prints them as one line and exits non-zero."""
 
+import re
 from typing import Any
 
 
@@ -16,6 +17,14 @@ def one_line(text: str, limit: int = 160) -> str:
     """A library's message quoted in ours: whitespace runs collapsed, cut to `limit`
     characters (a corrupt file can make one gigabytes long)."""
     return shorten(" ".join(text.split()), limit)
+
+
+def mitsuba_cause(text: str) -> str:
+    """The cause at the end of a Mitsuba error, without the source locations and plugin
+    contexts it is wrapped in ('[parser.cpp:1718] At dictionary node ...: [PLYMesh] Error
+    while loading PLY file "x.ply": [ply.h:213] "x.ply": could not parse ...')."""
+    last = re.split(r"\[[A-Za-z_][\w.]*(?::\d+)?\]\s*", text.strip())[-1]
+    return re.sub(r'^"[^"]*":\s*', "", last).strip() or text.strip()
 
 
 def shorten_repr(value: Any, limit: int = 40) -> str:

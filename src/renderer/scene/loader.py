@@ -15,6 +15,7 @@ import hashlib
 import json
 import os
 import re
+import warnings
 from collections.abc import Hashable, Iterable, Sequence
 from pathlib import Path
 from typing import Any, NoReturn
@@ -22,7 +23,7 @@ from typing import Any, NoReturn
 import numpy as np
 import yaml
 
-from renderer.errors import PgiError, one_line, shorten
+from renderer.errors import PgiError, mitsuba_cause, one_line, shorten
 from renderer.errors import shorten_repr as _describe
 from renderer.ranges import INT32_MAX, integer_problem, number_problem
 from renderer.scene import primitives
@@ -380,7 +381,7 @@ class _Validator:
 
     def table(self, doc: dict, key: str) -> dict[str, Any]:
         """A top-level name -> definition section (absent or empty = no entries)."""
-        t = doc.get(key) or {}
+        t = _or_empty(doc.get(key), {})
         if not isinstance(t, dict):
             self.fail((key,), f"expected a mapping of name -> definition, got {_describe(t)}")
         for name in t:
@@ -390,11 +391,22 @@ class _Validator:
 
     def number(
         self, v: Any, path: KeyPath, lo: float | None = None, hi: float | None = None,
-        lo_open: bool = False, hi_open: bool = False,
+        lo_open: bool = False, hi_open: bool = False, float32: bool = False,
     ) -> float:  # fmt: skip
+        """A number within bounds; with float32, also once rounded as Mitsuba stores it."""
         expected = number_problem(v, lo, hi, lo_open, hi_open)
         if expected:
             self.fail(path, f"expected {expected}, got {_describe(v)}")
+        if float32:
+            rounded = float(np.float32(v))
+            lo32, hi32 = (None if b is None else float(np.float32(b)) for b in (lo, hi))
+            expected = number_problem(rounded, lo32, hi32, lo_open, hi_open)
+            if expected:
+                self.fail(
+                    path,
+                    f"expected {expected} in float32, as Mitsuba stores it; "
+                    f"{_describe(v)} rounds to {rounded!r}",
+                )
         return float(v)
 
     def integer(self, v: Any, path: KeyPath, lo: int, hi: int | None = None) -> int:
@@ -503,7 +515,9 @@ def _camera(val: _Validator, d: Any) -> Camera:
         val.fail(p + ("up",), "is parallel to the view direction (target - origin)")
     return Camera(
         origin=origin, target=target, up=up,
-        fov=val.number(d["fov"], p + ("fov",), lo=0, hi=180, lo_open=True, hi_open=True),
+        fov=val.number(
+            d["fov"], p + ("fov",), lo=0, hi=180, lo_open=True, hi_open=True, float32=True
+        ),
         fov_axis=val.string(d.get("fov_axis", "x"), p + ("fov_axis",), FOV_AXES),
         medium=d.get("medium"),
     )  # fmt: skip
@@ -520,7 +534,9 @@ def _material(val: _Validator, name: str, d: Any) -> Material:
         )
     if kind == "dielectric":
         return Material(
-            name, kind, ior=val.number(d.get("ior", 1.5), p + ("ior",), lo=0, lo_open=True)
+            name,
+            kind,
+            ior=val.number(d.get("ior", 1.5), p + ("ior",), lo=0, lo_open=True, float32=True),
         )
     return Material(name, kind)
 
@@ -535,7 +551,7 @@ def _phase(val: _Validator, d: Any, p: KeyPath) -> Phase:
         return Phase(kind)
     if kind == "hg":
         val.mapping(d, p, required=("type", "g"))
-        g = val.number(d["g"], p + ("g",), lo=-1, hi=1, lo_open=True, hi_open=True)
+        g = val.number(d["g"], p + ("g",), lo=-1, hi=1, lo_open=True, hi_open=True, float32=True)
         return Phase("hg", g=g)
     if kind == "tabulated":
         val.mapping(d, p, required=("type",), optional=("values", "file"))
@@ -552,11 +568,21 @@ def _phase(val: _Validator, d: Any, p: KeyPath) -> Phase:
                 values = _read_npy(val, file, p + ("file",))
             else:
                 try:
-                    values = np.loadtxt(file, ndmin=1)
+                    with warnings.catch_warnings():  # an empty file: numpy warns, we say so
+                        warnings.simplefilter("ignore", UserWarning)
+                        values = np.loadtxt(file, ndmin=1)
                 except (OSError, ValueError) as e:
                     val.fail(p + ("file",), f"cannot read {file}: {one_line(str(e))}")
+                if values.size == 0:
+                    val.fail(p + ("file",), f"{file} holds no numbers")
             if values.dtype.kind not in "fiu":
                 val.fail(p + ("file",), f"{file}: expected numbers, got {values.dtype}")
+            if np.squeeze(values).ndim > 1:  # e.g. a column of angles beside the values
+                val.fail(
+                    p + ("file",),
+                    f"{file}: expected one list of values, got a table of shape "
+                    f"{list(values.shape)}",
+                )
             values = np.asarray(values, np.float64).ravel()
             if not np.all(np.isfinite(values)) or np.any(values < 0):
                 val.fail(p + ("file",), f"{file}: values must be finite and >= 0")
@@ -792,7 +818,7 @@ def _mesh_file(val: _Validator, v: Any, p: KeyPath) -> tuple[np.ndarray, np.ndar
         )
     except Exception as e:  # Mitsuba raises RuntimeError with its parser's message
         lines = str(e).strip().splitlines()
-        why = one_line(lines[-1]) if lines else f"not a readable {file.suffix} mesh"
+        why = one_line(mitsuba_cause(lines[-1])) if lines else f"not a readable {file.suffix} mesh"
         val.fail(p, f"cannot load {file}: {why}")
     v = np.array(mesh.vertex_positions_buffer(), dtype=np.float64).reshape(-1, 3)
     f = np.array(mesh.faces_buffer(), dtype=np.int64).reshape(-1, 3)
@@ -874,10 +900,15 @@ def _light(val: _Validator, i: int, d: Any) -> Light:
     if not np.max(np.abs(target - pos)) >= MIN_LENGTH:
         val.fail(p + ("target",), "equals the light's position, so its axis is undefined")
     cutoff = val.number(
-        d.get("cutoff_angle", 20.0), p + ("cutoff_angle",), lo=0, hi=90, lo_open=True
+        d.get("cutoff_angle", 20.0), p + ("cutoff_angle",), lo=0, hi=90, lo_open=True, float32=True
     )
     beam = val.number(
-        d.get("beam_width", cutoff * 0.75), p + ("beam_width",), lo=0, hi=cutoff, lo_open=True
+        d.get("beam_width", cutoff * 0.75),
+        p + ("beam_width",),
+        lo=0,
+        hi=cutoff,
+        lo_open=True,
+        float32=True,
     )
     intensity = val.rgb(d["intensity"], p + ("intensity",), hi=MAX_LIGHT)
     return SpotLight(pos, target, intensity, cutoff, beam)
@@ -910,7 +941,7 @@ def load_scene(path: str | Path, overrides: Sequence[str] = ()) -> Scene:
     film = Film(val.integer(film_doc["width"], ("film", "width"), 1, MAX_FILM_SIDE),
                 val.integer(film_doc["height"], ("film", "height"), 1, MAX_FILM_SIDE))  # fmt: skip
     integ = val.mapping(
-        doc.get("integrator") or {},
+        _or_empty(doc.get("integrator"), {}),
         ("integrator",),
         optional=("max_depth", "rr_depth", "estimator", "march_step"),
     )
@@ -934,7 +965,7 @@ def load_scene(path: str | Path, overrides: Sequence[str] = ()) -> Scene:
     for i, n in enumerate(names):
         if n in names[:i]:
             val.fail(("shapes", i, "name"), f"duplicate shape name {n!r}")
-    lights_doc = doc.get("lights") or []
+    lights_doc = _or_empty(doc.get("lights"), [])
     if not isinstance(lights_doc, list):
         val.fail(("lights",), f"expected a list of lights, got {_describe(lights_doc)}")
     lights = [_light(val, i, d) for i, d in enumerate(lights_doc)]
@@ -952,6 +983,12 @@ def load_scene(path: str | Path, overrides: Sequence[str] = ()) -> Scene:
         stresses=val.strings(doc.get("stresses", []), ("stresses",)),
         expected_winners=_method_names(val, doc.get("expected_winners", []), ("expected_winners",)),
     )  # fmt: skip
+
+
+def _or_empty(value: Any, empty: Any) -> Any:
+    """An optional section: absent or written empty (`lights:`) means no entries; any other
+    value is checked by its reader (`lights: 0` is a mistake, not an empty list)."""
+    return empty if value is None else value
 
 
 def _scene_documents(main: Path) -> list[tuple[Path, dict | None]]:
