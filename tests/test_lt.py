@@ -133,6 +133,33 @@ def test_directional_light_matches_pt(tmp_path):
     _vs_pt(load_scene(tmp_path / "scene.yaml"), 24, 1 << 14, 24, 64)
 
 
+def test_lights_placed_on_surfaces_match_pt():
+    """A spot set into the ceiling and a point light on the floor: light paths start an offset
+    off the light, as pt's shadow rays stop short of it. Started on the light itself, every
+    path hit the ceiling's back at distance 0 and lt was black; the floor light's paths
+    bounced off the floor first (its reflectance, 0.725, too little light)."""
+    lights = (
+        "lights=[{type: spot, position: [0.6, 1, 0], target: [0.6, -1, 0], intensity: 5, "
+        "cutoff_angle: 60}, {type: point, position: [-0.3, -1, 0.2], intensity: 1}]"
+    )
+    scene = load_small("cbox", 16, 16, ("shapes[7].emission=0", lights))
+    _vs_pt(scene, 16, 1 << 13, 16, 64)
+
+
+def test_a_camera_on_a_medium_boundary_ends_its_connections():
+    """A connection reaching a camera that sits on a null boundary used to cross the boundary,
+    turn back at the camera and cross again: ~4500 rays per light path and a render that
+    overran its time budget by 30 s. It now arrives: as many rays as with the camera just
+    inside (about 9 per path both)."""
+    rays = []
+    for z in (0.99, 0.98):  # on the fog's front face, then inside
+        scene = load_small("cbox-fog", 16, 16, (f"camera.origin=[0, 0, {z}]", "camera.medium=fog"))
+        lt = LightTracing(scene, seed=1, threads=2, params={"light_paths": 4096})
+        lt.run_iteration(0)
+        rays.append(lt.stats()["rays"])
+    assert rays[0] < 1.1 * rays[1], rays
+
+
 def test_density_grid_matches_pt():
     """cbox-grid: connections through a heterogeneous medium (ratio tracking)."""
     _vs_pt(load_small("cbox-grid", 16, 16), 16, 1 << 13, 16, 256)

@@ -72,6 +72,11 @@ size_t LightPathTracer::begin_iteration(int64_t iteration, const RayBuffers &out
     return k;
 }
 
+// A path from a point or spot light starts an offset out along its direction, as
+// pt's shadow rays stop as far short of the light: a light placed on a surface (a lamp on
+// the ceiling) then lights the room instead of hitting its own wall at distance 0.
+static Vec3 off_the_light(const Vec3 &position, const Vec3 &dir, double epsilon) { return position + dir * epsilon; }
+
 // Emission: a light by power, then a point and a direction on it (Jensen 2001, ch. 5).
 void LightPathTracer::emit(LightPathState &p, size_t slot, int64_t path) {
     const Scene &scene = *scene_;
@@ -114,8 +119,8 @@ void LightPathTracer::emit(LightPathState &p, size_t slot, int64_t path) {
             break;
         }
         case LightType::Point: {
-            p.pos = l.position;
             p.dir = square_to_uniform_sphere(u4, u5);
+            p.pos = off_the_light(l.position, p.dir, 2 * scene.offset_length(l.position));
             p.power = l.intensity * (4 * kPi / pick);
             p.medium = emission_medium_light_[li];
             break;
@@ -123,8 +128,8 @@ void LightPathTracer::emit(LightPathState &p, size_t slot, int64_t path) {
         case LightType::Spot: {
             // Uniform in the cutoff cone, weighted by the falloff.
             double cos_theta = 1 - u4 * (1 - l.cos_cutoff);
-            p.pos = l.position;
             p.dir = direction_around(l.direction, cos_theta, u5);
+            p.pos = off_the_light(l.position, p.dir, 2 * scene.offset_length(l.position));
             double falloff = l.spot_falloff(p.dir);
             p.power = l.intensity * (falloff * 2 * kPi * (1 - l.cos_cutoff) / pick);
             p.medium = emission_medium_light_[li];

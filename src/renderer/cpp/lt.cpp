@@ -53,7 +53,9 @@ size_t LightTracer::connect(const LightPathTracer &paths) {
         r.dir = -c.to_camera;  // placeholder; restart_at aims at the target
         r.target = cam.origin;
         r.to_infinity = false;
-        r.target_eps = 0;
+        // A boundary within an offset of the camera counts as reached: with the camera on a
+        // null boundary the ray would cross it, turn back at the camera, and cross again.
+        r.target_eps = scene.offset_length(cam.origin);
         r.restart_at(origin);
         r.medium = medium;
         r.receiver = k;
