@@ -66,3 +66,38 @@ def test_sppm_takes_both_radii_without_its_default_scale():
         load_small("cbox", 4, 4), seed=0, threads=1, params={"radius": 0.1, "volume_radius": 0.2}
     )
     assert (sppm.radius, sppm.volume_radius) == (0.1, 0.2)
+
+
+@pytest.mark.parametrize(
+    "method, key, value",
+    [
+        ("pt", "spp_per_wave", 100_000),
+        ("pm", "spp_per_iteration", 100_000),
+        ("pm", "photons", 10**8),
+        ("sppm", "spp_per_iteration", 100_000),
+        ("ppb", "light_paths", 10**8),
+        ("ppb", "spp_per_iteration", 100_000),
+        ("lt", "light_paths", 10**8),
+    ],
+)
+def test_batches_beyond_half_the_memory_are_refused_before_any_work(
+    monkeypatch, method, key, value
+):
+    """On a 16x16 film: 25.6 million camera paths (or 1e8 light paths) per batch, ~24 GiB at
+    the bound of 1 KiB a path, on a machine of 24 GiB; Linux used to grant the memory and
+    then kill the render."""
+    import renderer.methods.params as params
+
+    monkeypatch.setattr(params, "physical_memory", lambda: 24 * 2**30)
+    with pytest.raises(PgiError, match=f"^method {method}: {key} gives batches of .* GiB"):
+        get_method(method)(load_small("cbox", 16, 16), seed=0, threads=1, params={key: value})
+
+
+def test_memory_bound_follows_the_machine(monkeypatch):
+    import renderer.methods.params as params
+
+    monkeypatch.setattr(params, "physical_memory", lambda: 2**40)  # 1 TiB: 100,000 spp fits
+    params.MethodParams("pt", {}, ()).paths_fit_in_memory("spp_per_wave", 25_600_000)
+    monkeypatch.setattr(params, "physical_memory", lambda: 2**30)  # 1 GiB: 1e6 paths do not
+    with pytest.raises(PgiError, match="more than half this machine's 1 GiB"):
+        params.MethodParams("pt", {}, ()).paths_fit_in_memory("spp_per_wave", 10**6)

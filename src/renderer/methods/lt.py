@@ -53,6 +53,7 @@ class LightTracing:
                 f"method lt: light_paths {paths} must divide --spp x pixels "
                 f"({spp_budget} x {pixels})"
             )
+        p.paths_fit_in_memory("light_paths", paths, "light paths")
         max_records = p.integer("max_records", _DEFAULT_MAX_RECORDS, lo=1)
         self.native = build_native_scene(scene)
         self.tracer = EmbreeTracer(self.native.triangles, threads)

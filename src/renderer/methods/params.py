@@ -3,11 +3,25 @@ so that a mistake is one line naming the method, the key and what was expected."
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterable
 from typing import Any
 
 from ..errors import PgiError
 from ..ranges import INT32_MAX, integer_problem, number_problem
+
+# Memory one path of a batch may take, camera or light (its state, rays, shadow rays and
+# records; measured 200-430 bytes for camera paths): a rough, generous bound.
+PATH_BYTES = 1024
+
+
+def physical_memory() -> int:
+    """Bytes of RAM on this machine (0 where the system does not say)."""
+    try:
+        return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return 0
+
 
 # Radii below this fraction of the scene's bounding-sphere radius find no photon, and at
 # ~1e-150 of it 1 / (pi r^2) overflows into non-finite samples.
@@ -66,6 +80,18 @@ class MethodParams:
         """A parameter given where it has no effect is a mistake, not something to ignore."""
         if key in self.params and not used:
             raise PgiError(f"method {self.method}: {key} has no effect {why}")
+
+    def paths_fit_in_memory(self, key: str, paths: int, what: str = "paths") -> None:
+        """Refuse a batch of paths whose state would take over half the machine's memory:
+        Linux grants such allocations and then kills the process, with no message."""
+        total = physical_memory()
+        if total and paths * PATH_BYTES > total // 2:
+            raise PgiError(
+                f"method {self.method}: {key} gives batches of {paths:,} {what}, about "
+                f"{paths * PATH_BYTES / 2**30:.0f} GiB, more than half this machine's "
+                f"{total / 2**30:.0f} GiB: lower method.{key}"
+                + (" or the film's size" if what == "camera paths" else "")
+            )
 
     def spp_per_iteration(self, key: str, default: int, spp_budget: int | None) -> int:
         """Samples per pixel of one iteration; with an spp budget it must divide it, so that
