@@ -95,10 +95,56 @@ def _walk_to_named_shape(
         front = np.einsum("ij,ij->i", dirs[done], normals[at]) < 0
         side[done] = np.where(front, outside[at], inside[at])
         pending, tfar, prim = pending[~is_named], tfar[~is_named], prim[~is_named]
+        # A shape naming a medium may coincide with the surface Embree returned (a fog box
+        # built on the walls): stepping past the hit would jump it, so look for it there.
+        also = _named_triangle_at(native, named, origin[pending], dirs[pending], tfar, eps)
+        if np.any(also >= 0):
+            found = also >= 0
+            done, at = pending[found], also[found]
+            crossed[done] = True
+            front = np.einsum("ij,ij->i", dirs[done], normals[at]) < 0
+            side[done] = np.where(front, outside[at], inside[at])
+            pending, tfar, prim = pending[~found], tfar[~found], prim[~found]
         opaque_first[pending[~passable[prim]]] = True
         origin[pending] += dirs[pending] * (tfar[:, None] + eps)
         left[pending] -= tfar + eps
     return crossed, side, opaque_first
+
+
+def _named_triangle_at(
+    native: NativeScene,
+    named: np.ndarray,
+    origins: np.ndarray,
+    dirs: np.ndarray,
+    t: np.ndarray,
+    eps: float,
+) -> np.ndarray:
+    """Per ray, a triangle naming a medium that the ray crosses within eps of distance t, or
+    -1 (Moller-Trumbore against those triangles only, in chunks of about 1e6 pairs)."""
+    candidates = np.flatnonzero(named)
+    found = np.full(len(origins), -1, np.int64)
+    if len(origins) == 0 or len(candidates) == 0:
+        return found
+    tri = native.triangles[candidates].astype(np.float64)
+    v0, e1, e2 = tri[:, 0], tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    step = max(1, 1_000_000 // len(candidates))
+    for a in range(0, len(origins), step):
+        o, d, ti = origins[a : a + step, None], dirs[a : a + step, None], t[a : a + step, None]
+        p = np.cross(d, e2)  # (rays, triangles, 3)
+        det = np.einsum("tj,rtj->rt", e1, p)
+        inv = 1 / np.where(det != 0, det, np.inf)
+        s_ = o - v0
+        u = np.einsum("rtj,rtj->rt", s_, p) * inv
+        q = np.cross(s_, e1)
+        v = np.einsum("rtj,rtj->rt", q, np.broadcast_to(d, q.shape)) * inv
+        dist = np.einsum("tj,rtj->rt", e2, q) * inv
+        tol = 1e-9
+        hit = (det != 0) & (u >= -tol) & (v >= -tol) & (u + v <= 1 + tol)
+        hit &= np.abs(dist - ti) <= eps
+        first = np.argmax(hit, axis=1)
+        any_hit = hit[np.arange(len(hit)), first]
+        found[a : a + step] = np.where(any_hit, candidates[first], -1)
+    return found
 
 
 def _unit_normals(native: NativeScene) -> np.ndarray:
