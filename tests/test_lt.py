@@ -313,11 +313,10 @@ def test_lights_emit_into_their_medium(name, expected, overrides):
     """cbox-fog: inside a fog box (found by probes); volcaustic: in the camera's unbounded fog."""
     from renderer.engine import build_native_scene
     from renderer.methods.lightpath import emission_media
-    from renderer.tracer import EmbreeTracer
 
     scene = load_small(name, 8, 8, overrides)
     native = build_native_scene(scene)
-    per_triangle, _ = emission_media(native, EmbreeTracer(native.triangles, 1), scene)
+    per_triangle, _ = emission_media(native, scene)
     light = next(i for i, s in enumerate(scene.shapes) if s.emission is not None)
     first = sum(len(s.faces) for s in scene.shapes[:light])
     want = -1 if expected is None else list(scene.media).index(expected)
@@ -331,11 +330,10 @@ def test_sun_outside_a_fog_filled_room_starts_in_vacuum():
     centre alone, followed through the room's opaque shell, put the sun in the fog)."""
     from renderer.engine import build_native_scene
     from renderer.methods.lightpath import emission_media
-    from renderer.tracer import EmbreeTracer
 
     scene = load_small("crepuscular", 8, 8)
     native = build_native_scene(scene)
-    _, per_light = emission_media(native, EmbreeTracer(native.triangles, 1), scene)
+    _, per_light = emission_media(native, scene)
     assert per_light.tolist() == [-1]
 
 
@@ -371,7 +369,6 @@ def test_sun_shining_into_an_unbounded_grid_starts_in_it():
     towards the sun travel in it; with the camera outside every medium they start in vacuum."""
     from renderer.engine import build_native_scene
     from renderer.methods.lightpath import emission_media
-    from renderer.tracer import EmbreeTracer
 
     open_grid = (
         "camera.medium=smoke",
@@ -382,5 +379,5 @@ def test_sun_shining_into_an_unbounded_grid_starts_in_it():
     for extra, want in ((open_grid, 0), (open_grid[1:], -1)):
         scene = load_small("smoke", 8, 8, extra)
         native = build_native_scene(scene)
-        _, per_light = emission_media(native, EmbreeTracer(native.triangles, 1), scene)
+        _, per_light = emission_media(native, scene)
         assert per_light.tolist() == [want], extra

@@ -18,8 +18,6 @@ from ..tracer import EmbreeTracer, RayBatch
 
 # Probe directions per emitter: the medium is the majority answer.
 _PROBE_DIRECTIONS = 5
-# Surfaces a probe may pass on its way to a medium boundary.
-_MAX_PROBE_HITS = 64
 
 
 def _medium_names(scene: Scene) -> dict[str, int]:
@@ -27,12 +25,63 @@ def _medium_names(scene: Scene) -> dict[str, int]:
     return {name: i for i, name in enumerate(scene.media)}
 
 
+class _ProbeSurfaces:
+    """The scene as straight probe rays see it: the shapes that name a medium, and the opaque
+    surfaces (neither null nor dielectric) that name none, each in an Embree scene of its own.
+    Null and glass surfaces naming no medium change nothing a probe asks, so they are left
+    out; and a named shape is found even where it coincides with an unnamed surface (a fog
+    box built on the walls), which a walk through the whole scene could step over."""
+
+    def __init__(self, native: NativeScene, scene: Scene) -> None:
+        self.inside, self.outside, named = _triangle_media(native, scene, _medium_names(scene))
+        passable = native.per_triangle(
+            scene,
+            [scene.materials[s.material].type in ("null", "dielectric") for s in scene.shapes],
+        ).astype(bool)
+        self.normals = _unit_normals(native)
+        self.named_ids = np.flatnonzero(named)
+        self.opaque_ids = np.flatnonzero(~named & ~passable)
+        self.named = self._tracer(native, self.named_ids)
+        self.opaque = self._tracer(native, self.opaque_ids)
+
+    @staticmethod
+    def _tracer(native: NativeScene, ids: np.ndarray) -> EmbreeTracer | None:
+        return EmbreeTracer(native.triangles[ids], 1) if len(ids) else None
+
+    @staticmethod
+    def _first_hit(tracer, ids, points, dirs, lengths) -> tuple[np.ndarray, np.ndarray]:
+        """Distance (inf: none) and native triangle (-1) of each ray's first hit."""
+        n = len(points)
+        if tracer is None or n == 0:
+            return np.full(n, np.inf), np.full(n, -1, np.int64)
+        batch = RayBatch(n)
+        batch.origins[:n], batch.directions[:n], batch.tmax[:n] = points, dirs, lengths
+        tfar, prim, _, _ = tracer.intersect(batch, n)
+        hit = prim[:n] >= 0
+        return np.where(hit, tfar[:n], np.inf), np.where(hit, ids[np.maximum(prim[:n], 0)], -1)
+
+    def walk(
+        self, points: np.ndarray, directions: np.ndarray, lengths: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Straight rays from `points` (length `lengths`) to the first shape that names a
+        medium, passing every surface that names none. Per ray: whether one was reached; the
+        medium on the ray's starting side of it (its exterior when the ray enters it from the
+        normal side, else its interior; -1 where none was reached); and whether an opaque
+        surface naming no medium comes first."""
+        dirs = directions / np.linalg.norm(directions, axis=1, keepdims=True)
+        lengths = np.asarray(lengths, np.float64)
+        t_named, at = self._first_hit(self.named, self.named_ids, points, dirs, lengths)
+        t_opaque, _ = self._first_hit(self.opaque, self.opaque_ids, points, dirs, lengths)
+        crossed = at >= 0
+        side = np.full(len(points), -1, np.int32)
+        hit = at[crossed]
+        front = np.einsum("ij,ij->i", dirs[crossed], self.normals[hit]) < 0
+        side[crossed] = np.where(front, self.outside[hit], self.inside[hit])
+        return crossed, side, t_opaque < t_named
+
+
 def locate_media(
-    native: NativeScene,
-    tracer: EmbreeTracer,
-    scene: Scene,
-    points: np.ndarray,
-    directions: np.ndarray,
+    surfaces: _ProbeSurfaces, points: np.ndarray, directions: np.ndarray
 ) -> np.ndarray:
     """Medium index (-1 = vacuum) around each point, found along a probe ray per point.
 
@@ -40,111 +89,8 @@ def locate_media(
     shape the probe crosses tells the side the point is on: its exterior when
     the probe enters it from the normal side, else its interior.
     """
-    n = len(points)
-    if n == 0 or not scene.media:
-        return np.full(n, -1, np.int32)
-    _, side, _ = _walk_to_named_shape(native, tracer, scene, points, directions, np.full(n, 1e30))
+    _, side, _ = surfaces.walk(points, directions, np.full(len(points), 1e30))
     return side
-
-
-def _walk_to_named_shape(
-    native: NativeScene,
-    tracer: EmbreeTracer,
-    scene: Scene,
-    points: np.ndarray,
-    directions: np.ndarray,
-    lengths: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Straight rays from `points` (length `lengths`) walked through every surface naming no
-    medium up to the first shape that names one. Per ray: whether one was reached; the
-    medium on the ray's starting side of it (its exterior when the ray enters it from the
-    normal side, else its interior; -1 where none was reached); and whether an opaque
-    surface (neither null nor dielectric) naming no medium came first."""
-    n = len(points)
-    crossed = np.zeros(n, bool)
-    side = np.full(n, -1, np.int32)
-    opaque_first = np.zeros(n, bool)
-    inside, outside, named = _triangle_media(native, scene, _medium_names(scene))
-    normals = _unit_normals(native)
-    passable = native.per_triangle(
-        scene,
-        [scene.materials[s.material].type in ("null", "dielectric") for s in scene.shapes],
-    ).astype(bool)
-    eps = 1e-5 * float(np.ptp(native.triangles.reshape(-1, 3), axis=0).max())
-    origin = points.astype(np.float64).copy()
-    dirs = directions / np.linalg.norm(directions, axis=1, keepdims=True)
-    left = np.asarray(lengths, np.float64).copy()
-    batch = RayBatch(n)
-    pending = np.arange(n)
-    for _ in range(_MAX_PROBE_HITS):
-        if len(pending) == 0:
-            break
-        m = len(pending)
-        batch.origins[:m], batch.directions[:m], batch.tmax[:m] = (
-            origin[pending],
-            dirs[pending],
-            left[pending],
-        )
-        tfar, prim, _, _ = tracer.intersect(batch, m)
-        prim = prim[:m].astype(np.int64)
-        hit = prim >= 0
-        pending, tfar, prim = pending[hit], tfar[:m][hit], prim[hit]
-        is_named = named[prim]
-        done, at = pending[is_named], prim[is_named]
-        crossed[done] = True
-        front = np.einsum("ij,ij->i", dirs[done], normals[at]) < 0
-        side[done] = np.where(front, outside[at], inside[at])
-        pending, tfar, prim = pending[~is_named], tfar[~is_named], prim[~is_named]
-        # A shape naming a medium may coincide with the surface Embree returned (a fog box
-        # built on the walls): stepping past the hit would jump it, so look for it there.
-        also = _named_triangle_at(native, named, origin[pending], dirs[pending], tfar, eps)
-        if np.any(also >= 0):
-            found = also >= 0
-            done, at = pending[found], also[found]
-            crossed[done] = True
-            front = np.einsum("ij,ij->i", dirs[done], normals[at]) < 0
-            side[done] = np.where(front, outside[at], inside[at])
-            pending, tfar, prim = pending[~found], tfar[~found], prim[~found]
-        opaque_first[pending[~passable[prim]]] = True
-        origin[pending] += dirs[pending] * (tfar[:, None] + eps)
-        left[pending] -= tfar + eps
-    return crossed, side, opaque_first
-
-
-def _named_triangle_at(
-    native: NativeScene,
-    named: np.ndarray,
-    origins: np.ndarray,
-    dirs: np.ndarray,
-    t: np.ndarray,
-    eps: float,
-) -> np.ndarray:
-    """Per ray, a triangle naming a medium that the ray crosses within eps of distance t, or
-    -1 (Moller-Trumbore against those triangles only, in chunks of about 1e6 pairs)."""
-    candidates = np.flatnonzero(named)
-    found = np.full(len(origins), -1, np.int64)
-    if len(origins) == 0 or len(candidates) == 0:
-        return found
-    tri = native.triangles[candidates].astype(np.float64)
-    v0, e1, e2 = tri[:, 0], tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
-    step = max(1, 1_000_000 // len(candidates))
-    for a in range(0, len(origins), step):
-        o, d, ti = origins[a : a + step, None], dirs[a : a + step, None], t[a : a + step, None]
-        p = np.cross(d, e2)  # (rays, triangles, 3)
-        det = np.einsum("tj,rtj->rt", e1, p)
-        inv = 1 / np.where(det != 0, det, np.inf)
-        s_ = o - v0
-        u = np.einsum("rtj,rtj->rt", s_, p) * inv
-        q = np.cross(s_, e1)
-        v = np.einsum("rtj,rtj->rt", q, np.broadcast_to(d, q.shape)) * inv
-        dist = np.einsum("tj,rtj->rt", e2, q) * inv
-        tol = 1e-9
-        hit = (det != 0) & (u >= -tol) & (v >= -tol) & (u + v <= 1 + tol)
-        hit &= np.abs(dist - ti) <= eps
-        first = np.argmax(hit, axis=1)
-        any_hit = hit[np.arange(len(hit)), first]
-        found[a : a + step] = np.where(any_hit, candidates[first], -1)
-    return found
 
 
 def _unit_normals(native: NativeScene) -> np.ndarray:
@@ -168,7 +114,7 @@ def _triangle_media(native: NativeScene, scene: Scene, ids: dict[str, int]):
     return inside.astype(np.int32), outside.astype(np.int32), named.astype(bool)
 
 
-def emission_media(native: NativeScene, tracer: EmbreeTracer, scene: Scene, seed: int = 0):
+def emission_media(native: NativeScene, scene: Scene, seed: int = 0):
     """(per triangle, per light) medium each light emits into, in the core's light order.
 
     Area lights come first in the core (one per emitting shape, in shape order), then
@@ -188,6 +134,7 @@ def emission_media(native: NativeScene, tracer: EmbreeTracer, scene: Scene, seed
     such surfaces.
     """
     rng = np.random.default_rng(seed)
+    surfaces = _ProbeSurfaces(native, scene)
     tri = native.triangles
     ntri = len(tri)
     per_triangle = np.full(ntri, -1, np.int32)
@@ -212,14 +159,14 @@ def emission_media(native: NativeScene, tracer: EmbreeTracer, scene: Scene, seed
             d /= np.linalg.norm(d, axis=1, keepdims=True)
             # Keep the probe on the emitting side.
             d = np.where((np.einsum("ij,ij->i", d, normal) < 0)[:, None], -d, d)
-            votes.append(locate_media(native, tracer, scene, start, d))
+            votes.append(locate_media(surfaces, start, d))
         per_triangle[emitting] = _majority(np.stack(votes))
     per_light = np.full(lights_area + len(scene.lights), -1, np.int32)
     for i, pos in enumerate(point_positions):
         if pos is None:
             continue
         d = rng.normal(size=(_PROBE_DIRECTIONS, 3))
-        found = locate_media(native, tracer, scene, np.repeat(pos[None], _PROBE_DIRECTIONS, 0), d)
+        found = locate_media(surfaces, np.repeat(pos[None], _PROBE_DIRECTIONS, 0), d)
         per_light[lights_area + i] = _majority(found[:, None])[0]
     if scene.camera.medium is not None:
         # A medium no shape names (a room filled with the camera's fog) is invisible to the
@@ -227,16 +174,16 @@ def emission_media(native: NativeScene, tracer: EmbreeTracer, scene: Scene, seed
         # in the camera's medium, by the same transition rule.
         camera_medium = _medium_names(scene)[scene.camera.medium]
         if len(emitting):
-            outcome, _ = _camera_routes(native, tracer, scene, start)
+            outcome, _ = _camera_routes(surfaces, scene, start)
             per_triangle[emitting[_route_shares_camera_medium(outcome)]] = camera_medium
         for i, pos in enumerate(point_positions):
             if pos is None:  # directional: routes from points spread over its disk
                 outcome, side = _camera_routes(
-                    native, tracer, scene, _sun_disk_points(native, scene.lights[i].direction)
+                    surfaces, scene, _sun_disk_points(native, scene.lights[i].direction)
                 )
                 per_light[lights_area + i] = _disk_medium(outcome, side, camera_medium)
             else:
-                outcome, _ = _camera_routes(native, tracer, scene, pos[None])
+                outcome, _ = _camera_routes(surfaces, scene, pos[None])
                 if _route_shares_camera_medium(outcome)[0]:
                     per_light[lights_area + i] = camera_medium
     return per_triangle, per_light
@@ -297,7 +244,7 @@ def _disk_medium(outcome: np.ndarray, side: np.ndarray, camera_medium: int) -> i
 
 
 def _camera_routes(
-    native: NativeScene, tracer: EmbreeTracer, scene: Scene, points: np.ndarray
+    surfaces: _ProbeSurfaces, scene: Scene, points: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Outcome of the straight route from each point to the camera, and the medium on the
     point's side of the first shape naming a medium it crosses (-1 if none): _CROSSES_NAMED
@@ -309,9 +256,7 @@ def _camera_routes(
     dist = np.linalg.norm(to, axis=1)
     directions = to / np.maximum(dist, 1e-300)[:, None]
     directions[dist == 0] = (0, 0, 1)  # a point at the camera: a route of length 0
-    crossed, side, opaque_first = _walk_to_named_shape(
-        native, tracer, scene, points, directions, dist
-    )
+    crossed, side, opaque_first = surfaces.walk(points, directions, dist)
     outcome = np.where(
         crossed,
         np.where(opaque_first, _ENDS_OPAQUE, _CROSSES_NAMED),
@@ -362,7 +307,7 @@ class LightPaths:
             max_records,
         )
         self.kernel.set_recording(vertices, segments)
-        per_triangle, per_light = emission_media(native, tracer, scene, seed)
+        per_triangle, per_light = emission_media(native, scene, seed)
         self.kernel.set_emission_media(per_triangle.tolist(), per_light.tolist())
         self.rays = RayBatch(paths)
         self.paths = paths
