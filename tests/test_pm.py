@@ -80,22 +80,22 @@ POINT_LIGHT_CAMERA_IN_FOG = (
 
 
 @pytest.mark.parametrize(
-    "name, radius, overrides",
+    "name, radius, overrides, photons, reference_iterations",
     [
-        ("cbox-fog", 0.04, ()),
-        ("cbox-grid", 0.02, ()),
+        ("cbox-fog", 0.04, (), 1 << 14, 16),
+        ("cbox-grid", 0.02, (), 1 << 14, 16),
         # Mitsuba's max_depth: direct light and one bounce (an event too many or too few
         # changes the mean by +17 % or -25 % here)
-        ("cbox-fog", 0.04, ("integrator.max_depth=3",)),
+        ("cbox-fog", 0.04, ("integrator.max_depth=3",), 1 << 14, 16),
         # the same through the glass sphere, where specular bounces count towards max_depth
         # (gathering as if they did not fails: |z| 5.97 against 3.89)
-        ("cbox-glass", 0.02, ("integrator.max_depth=3",)),
+        ("cbox-glass", 0.02, ("integrator.max_depth=3",), 1 << 14, 16),
         # a camera inside the fog, lit only by a point light in it, scattering by a
         # tabulated phase function: none of these appears in another pm case. Noisier per
         # photon (standard error of the mean 1.1 % with 16k photons), so it takes 8x the
         # photons and twice the reference (0.35-0.46 % and 0.50 %). Measured: isotropic
         # scattering in pm's place moves the mean by -16 %, the camera put in vacuum by -22 %.
-        ("cbox-fog", 0.04, POINT_LIGHT_CAMERA_IN_FOG),
+        ("cbox-fog", 0.04, POINT_LIGHT_CAMERA_IN_FOG, 1 << 17, 32),
     ],
     ids=[
         "cbox-fog",
@@ -105,7 +105,9 @@ POINT_LIGHT_CAMERA_IN_FOG = (
         "cbox-fog-point-light-camera-in-fog-tabulated",
     ],
 )
-def test_small_radius_agrees_with_pt_on_average(ref, name, radius, overrides):
+def test_small_radius_agrees_with_pt_on_average(
+    ref, name, radius, overrides, photons, reference_iterations
+):
     """With a small radius the remaining bias is below the noise of this test's image mean: the
     two means agree by a Welch t-test at parity.ALPHA, each error measured from independent
     iterations. cbox-grid scatters in a density grid, where the beam radiance
@@ -115,16 +117,15 @@ def test_small_radius_agrees_with_pt_on_average(ref, name, radius, overrides):
     of the difference is 0.4-0.6 % of the mean; a 4 % loss fails every case (|z| 5.3-7.8
     against 3.89), so does ~3 %."""
     default = name == "cbox-fog" and not overrides
-    point_light = overrides == POINT_LIGHT_CAMERA_IN_FOG
     reference_estimate, mask = (
-        ref if default else reference(name, overrides, iterations=32 if point_light else 16)
+        ref if default else reference(name, overrides, iterations=reference_iterations)
     )
     pm = ours(
         PhotonMapping,
         load_small(name, RES, RES, overrides),
         64,
         seed=2,
-        photons=1 << 17 if point_light else 1 << 14,
+        photons=photons,
         spp_per_iteration=16,
         radius=radius,
         volume_radius=radius,
