@@ -15,6 +15,7 @@ namespace pgi {
 
 struct CameraPath {
     Vec3 pos, dir;
+    double lead = 0;     // medium behind pos (start_path_at)
     RGB throughput{1.0};
     RGB radiance{0.0};   // everything this path has gathered so far
     Vec3 prev_pos;       // last real scattering vertex (for the light pdf in MIS)
@@ -102,7 +103,7 @@ public:
     // A shadow ray towards a light sample, weighted by the power heuristic
     // against the BSDF/phase pdf (1 for delta lights). `receiver` gets it.
     void next_event(const CameraPath &p, ShadowRay &r, int64_t receiver, const LightSample &ls, const RGB &f,
-                    double pdf_dir, const Vec3 &origin, int medium) const {
+                    double pdf_dir, const RayStart &origin, int medium) const {
         r.live = false;
         if (!ls.valid || is_black(f)) return;
         double w = ls.delta ? 1.0 : power_heuristic(ls.pdf, pdf_dir);
@@ -126,14 +127,14 @@ public:
         LightSample ls = scene_.sample_light(x, p.rng);
         if (ls.valid) {
             double f = phase_eval(m.phase, wo, ls.wi);
-            next_event(p, r, receiver, ls, RGB(f), f, x, p.medium);
+            next_event(p, r, receiver, ls, RGB(f), f, RayStart{x}, p.medium);
         }
         double pdf, u1 = p.rng.next(), u2 = p.rng.next();
         p.dir = phase_sample(m.phase, wo, u1, u2, pdf);  // exact sampling: weight 1
         p.prev_pos = x;
         p.prev_pdf = pdf;
         p.prev_delta = false;
-        p.pos = x;
+        start_path_at(p, x);
         p.alive = russian_roulette(p);
     }
     // NEE at a non-delta surface vertex (the event at x already counted).
@@ -144,7 +145,7 @@ public:
         if (!ls.valid) return;
         Vec3 wo = -p.dir;
         next_event(p, r, receiver, ls, bsdf_eval(mat, T.n, wo, ls.wi), bsdf_pdf(mat, T.n, wo, ls.wi),
-                   scene_.offset(x, tri, ls.wi), T.medium_after(p.medium, ls.wi));
+                   scene_.spawn(x, tri, ls.wi), T.medium_after(p.medium, ls.wi));
     }
     // Continues by BSDF sampling at surface vertex x (the event already counted).
     void continue_by_bsdf(CameraPath &p, int tri, const Vec3 &x) const {
@@ -162,7 +163,7 @@ public:
         p.eta2 *= bs.eta * bs.eta;
         p.dir = bs.wi;
         p.medium = T.medium_after(p.medium, bs.wi);
-        p.pos = scene_.offset(x, tri, bs.wi);
+        start_path_at(p, scene_.spawn(x, tri, bs.wi));
         p.alive = russian_roulette(p);
     }
     // Mitsuba's rule: after rr_depth real events, continue with probability

@@ -74,8 +74,11 @@ size_t LightPathTracer::begin_iteration(int64_t iteration, const RayBuffers &out
 
 // A path from a point or spot light starts an offset out along its direction, as
 // pt's shadow rays stop as far short of the light: a light placed on a surface (a lamp on
-// the ceiling) then lights the room instead of hitting its own wall at distance 0.
-static Vec3 off_the_light(const Vec3 &position, const Vec3 &dir, double epsilon) { return position + dir * epsilon; }
+// the ceiling) then lights the room instead of hitting its own wall at distance 0. The
+// medium the light sits in fills that offset: it is the path's lead.
+static RayStart off_the_light(const Vec3 &position, const Vec3 &dir, double epsilon) {
+    return {position + dir * epsilon, epsilon};
+}
 
 // Emission: a light by power, then a point and a direction on it (Jensen 2001, ch. 5).
 void LightPathTracer::emit(LightPathState &p, size_t slot, int64_t path) {
@@ -114,13 +117,13 @@ void LightPathTracer::emit(LightPathState &p, size_t slot, int64_t path) {
             if (local.z <= 0) return;
             p.dir = Frame(T.n).to_world(local);
             p.power = e.radiance * (kPi * inv_pdf_area);
-            p.pos = scene.offset(x, tri, p.dir);
+            start_path_at(p, scene.spawn(x, tri, p.dir));
             p.medium = T.transition ? T.medium_after(-1, p.dir) : emission_medium_triangle_[tri];
             break;
         }
         case LightType::Point: {
             p.dir = square_to_uniform_sphere(u4, u5);
-            p.pos = off_the_light(l.position, p.dir, 2 * scene.offset_length(l.position));
+            start_path_at(p, off_the_light(l.position, p.dir, 2 * scene.offset_length(l.position)));
             p.power = l.intensity * (4 * kPi / pick);
             p.medium = emission_medium_light_[li];
             break;
@@ -129,7 +132,7 @@ void LightPathTracer::emit(LightPathState &p, size_t slot, int64_t path) {
             // Uniform in the cutoff cone, weighted by the falloff.
             double cos_theta = 1 - u4 * (1 - l.cos_cutoff);
             p.dir = direction_around(l.direction, cos_theta, u5);
-            p.pos = off_the_light(l.position, p.dir, 2 * scene.offset_length(l.position));
+            start_path_at(p, off_the_light(l.position, p.dir, 2 * scene.offset_length(l.position)));
             double falloff = l.spot_falloff(p.dir);
             p.power = l.intensity * (falloff * 2 * kPi * (1 - l.cos_cutoff) / pick);
             p.medium = emission_medium_light_[li];
@@ -141,8 +144,8 @@ void LightPathTracer::emit(LightPathState &p, size_t slot, int64_t path) {
             double radius = scene.scene_radius * 1.01;
             Vec3 disk = square_to_cosine_hemisphere(u4, u5);  // x, y uniform on the unit disk
             Frame f(l.direction);
-            p.pos = scene.scene_center - l.direction * radius + (f.s * disk.x + f.t * disk.y) * radius;
             p.dir = l.direction;
+            start_path_at(p, scene.scene_center - l.direction * radius + (f.s * disk.x + f.t * disk.y) * radius);
             p.power = l.intensity * (kPi * radius * radius / pick);
             p.medium = emission_medium_light_[li];
             break;
@@ -168,15 +171,16 @@ void LightPathTracer::scatter(const Hits &hits) {
         double t_hit = tri >= 0 ? double(hits.tfar[k]) : kInf;
         if (p.medium >= 0) {
             MediumStats local;
-            FreeFlight ff = sample_free_flight(scene.media[p.medium], p.pos, p.dir, t_hit, p.rng, local);
+            FreeFlight ff =
+                sample_free_flight(scene.media[p.medium], segment_origin(p), p.dir, t_hit + p.lead, p.rng, local);
             lookups += local.density_lookups;
             // A point on this segment scatters into a vertex of depth p.depth + 1.
             if (record_segments_ && in_range(p.depth + 1)) {
                 LightSegment &s = slot_segment_[k];
-                s.origin = p.pos;
+                s.origin = segment_origin(p);
                 s.dir = p.dir;
-                s.length = ff.scattered ? ff.t : t_hit;
-                s.t_surface = t_hit;
+                s.length = ff.scattered ? ff.t : t_hit + p.lead;
+                s.t_surface = t_hit + p.lead;
                 s.power = p.power;
                 s.path = active_[k];
                 s.medium = p.medium;
@@ -186,7 +190,7 @@ void LightPathTracer::scatter(const Hits &hits) {
             }
             p.power *= ff.weight;
             if (ff.scattered) {
-                scatter_in_medium(p, size_t(k), p.pos + p.dir * ff.t);
+                scatter_in_medium(p, size_t(k), segment_point(p, ff.t));
                 continue;
             }
         }
@@ -231,7 +235,7 @@ void LightPathTracer::scatter_in_medium(LightPathState &p, size_t slot, const Ve
     double u1 = p.rng.next(), u2 = p.rng.next();
     // Phase functions are symmetric and sampled exactly: weight 1.
     p.dir = phase_sample(m.phase, wi, u1, u2, pdf);
-    p.pos = x;
+    start_path_at(p, x);
     p.after_specular = false;
     p.alive = russian_roulette(p);
 }
@@ -269,7 +273,7 @@ void LightPathTracer::scatter_on_surface(LightPathState &p, size_t slot, int tri
     p.after_specular = bs.delta;
     p.dir = bs.wi;
     p.medium = T.medium_after(p.medium, bs.wi);
-    p.pos = scene_->offset(x, tri, bs.wi);
+    start_path_at(p, scene_->spawn(x, tri, bs.wi));
     p.alive = russian_roulette(p);
 }
 

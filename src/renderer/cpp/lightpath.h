@@ -87,6 +87,7 @@ struct LightSegment {
 
 struct LightPathState {
     Vec3 pos, dir;
+    double lead = 0;  // medium behind pos (start_path_at)
     RGB power{0.0};
     double inv_initial = 1;  // 1 / max component of the emitted power (Russian roulette)
     int medium = -1;

@@ -26,20 +26,20 @@ size_t LightTracer::connect(const LightPathTracer &paths) {
         CameraConnection c = connect_to_camera(cam, v.pos);
         if (!c.valid) continue;
         RGB f(0.0);
-        Vec3 origin = v.pos;
+        RayStart origin{v.pos};
         int medium = v.medium;
         switch (v.kind) {
             case VertexKind::Emission: {  // one-sided emitter: Le cos / pdf_A
                 double cos_l = dot(v.wi, c.to_camera);
                 if (cos_l <= 0) continue;
                 f = RGB(cos_l);
-                origin = scene.offset(v.pos, v.triangle, c.to_camera);
+                origin = scene.spawn(v.pos, v.triangle, c.to_camera);
                 break;
             }
             case VertexKind::Surface: {
                 const Triangle &T = scene.triangles[v.triangle];
                 f = bsdf_eval(scene.materials[T.material], T.n, v.wi, c.to_camera);
-                origin = scene.offset(v.pos, v.triangle, c.to_camera);
+                origin = scene.spawn(v.pos, v.triangle, c.to_camera);
                 medium = T.medium_after(v.medium, c.to_camera);
                 break;
             }

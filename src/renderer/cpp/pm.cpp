@@ -79,12 +79,13 @@ size_t PhotonGatherer::begin_camera(int64_t iteration, const RayBuffers &out) {
 RGB PhotonGatherer::beam_estimate(const GatherPath &p, double t_hit, double radius, Sampler rng,
                                   MediumStats &ms, uint64_t &accepted) const {
     const Medium &m = scene_->media[p.medium];
-    double tmax = std::isfinite(t_hit) ? t_hit : 1e30;
-    TransmittanceTrack track(m, p.pos, p.dir, tmax, rng, ms);
+    double tmax = std::isfinite(t_hit) ? t_hit + p.lead : 1e30;
+    const Vec3 origin = segment_origin(p);
+    TransmittanceTrack track(m, origin, p.dir, tmax, rng, ms);
     RGB sum(0.0);
     const double kernel = 1 / (kPi * radius * radius);
     Vec3 to_camera = -p.dir;
-    volume_tree_.query_ray(p.pos, p.dir, tmax, radius, [&](uint32_t i, double t, double) {
+    volume_tree_.query_ray(origin, p.dir, tmax, radius, [&](uint32_t i, double t, double) {
         const LightVertex &ph = volume_photons_[i];
         if (ph.medium != p.medium) return;
         if (max_depth_ >= 0 && ph.depth + p.specular >= max_depth_) return;
@@ -127,7 +128,7 @@ void PhotonGatherer::shade(const Hits &hits, double surface_radius, double volum
                                                        volume_accepted);
             if (tri >= 0) {
                 Sampler rng = p.rng.fork();
-                p.throughput *= transmittance(m, p.pos, p.dir, t_hit, rng, local);
+                p.throughput *= transmittance(m, segment_origin(p), p.dir, t_hit + p.lead, rng, local);
             }
             lookups += local.density_lookups;
         }
@@ -163,7 +164,7 @@ void PhotonGatherer::shade(const Hits &hits, double surface_radius, double volum
         p.throughput *= bs.weight;
         p.dir = bs.wi;
         p.medium = T.medium_after(p.medium, bs.wi);
-        p.pos = scene.offset(x, tri, bs.wi);
+        start_path_at(p, scene.spawn(x, tri, bs.wi));
     }
     medium_stats_.density_lookups += lookups;
     stats_.surface_lookups += surface_accepted;

@@ -43,6 +43,7 @@ namespace pgi {
 
 struct GatherPath {
     Vec3 pos, dir;
+    double lead = 0;  // medium behind pos (start_path_at)
     RGB throughput{1.0};
     RGB radiance{0.0};
     int64_t pixel = 0;

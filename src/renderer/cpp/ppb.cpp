@@ -77,7 +77,9 @@ RGB PhotonBeams::gather(BeamGatherPath &p, double t_end, MediumStats &local, uin
     const Medium &m = scene_->media[p.medium];
     const bool homogeneous = m.type == MediumType::Homogeneous;
     const Vec3 wo = -p.dir;
-    bvh_.query(p.pos, p.dir, t_end, [&](int32_t index, const BeamHit &h) {
+    // t_end and the hits' t_ray count from the segment's origin, the lead behind p.pos.
+    const Vec3 origin = segment_origin(p);
+    bvh_.query(origin, p.dir, t_end, [&](int32_t index, const BeamHit &h) {
         const Beam &b = bvh_.beams()[index];
         if (b.medium != p.medium || b.depth > max_beam_depth) return;
         RGB weight;
@@ -90,7 +92,7 @@ RGB PhotonBeams::gather(BeamGatherPath &p, double t_end, MediumStats &local, uin
             weight = beer_lambert(m.sigma_t, h.t_ray) * m.sigma_t * m.albedo * beam_tr / survival;
         } else {
             // Gray extinction: both short-ray weights are 1.
-            weight = m.albedo * grid_sigma_t(m, p.pos + p.dir * h.t_ray, local);
+            weight = m.albedo * grid_sigma_t(m, origin + p.dir * h.t_ray, local);
         }
         double phase = phase_eval(m.phase, wo, -b.dir);
         sum += weight * b.power * (phase / h.sin_theta);
@@ -117,22 +119,22 @@ size_t PhotonBeams::shade(const Hits &hits) {
             const Medium &m = scene.media[p.medium];
             if (!p.gathering) {
                 // After a diffuse surface: path tracing, medium scattering included (as pt).
-                FreeFlight ff = sample_free_flight(m, p.pos, p.dir, t_hit, p.rng, local);
+                FreeFlight ff = sample_free_flight(m, segment_origin(p), p.dir, t_hit + p.lead, p.rng, local);
                 lookups += local.density_lookups;
                 p.throughput *= ff.weight;
                 if (ff.scattered) {
-                    steps_.scatter_in_medium(p, shadow_[k], index, p.pos + p.dir * ff.t);
+                    steps_.scatter_in_medium(p, shadow_[k], index, segment_point(p, ff.t));
                     continue;
                 }
             } else if (m.type == MediumType::Homogeneous) {
                 // Gather beams along the whole segment, then carry the transmittance to the surface.
-                p.radiance += p.throughput * gather(p, t_hit, local, pairs);
-                p.throughput *= beer_lambert(m.sigma_t, t_hit);
+                p.radiance += p.throughput * gather(p, t_hit + p.lead, local, pairs);
+                p.throughput *= beer_lambert(m.sigma_t, t_hit + p.lead);
             } else {
                 // Short query ray: a delta-tracked distance bounds the gather, and a
                 // collision before the surface ends the camera path (beams covered it).
-                FreeFlight ff = sample_free_flight(m, p.pos, p.dir, t_hit, p.rng, local);
-                double t_end = ff.scattered ? ff.t : t_hit;
+                FreeFlight ff = sample_free_flight(m, segment_origin(p), p.dir, t_hit + p.lead, p.rng, local);
+                double t_end = ff.scattered ? ff.t : t_hit + p.lead;
                 p.radiance += p.throughput * gather(p, t_end, local, pairs);
                 if (ff.scattered) p.alive = false;
             }
@@ -176,7 +178,7 @@ void PhotonBeams::scatter_on_surface(BeamGatherPath &p, size_t slot, int tri, co
             full.pdf = 0;
             full.delta = true;  // weight 1: no BSDF-sampled emission competes with it
             steps_.next_event(p, shadow, index, full, bsdf_eval(mat, T.n, wo, ls.wi), 0,
-                              scene_->offset(x, tri, ls.wi), T.medium_after(p.medium, ls.wi));
+                              scene_->spawn(x, tri, ls.wi), T.medium_after(p.medium, ls.wi));
         }
         p.radiance += p.throughput * gather_photons(p, tri, x);
         p.alive = false;

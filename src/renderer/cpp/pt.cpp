@@ -35,10 +35,11 @@ size_t PathTracer::shade(const Hits &hits) {
 
         // Medium: a real collision before the surface scatters the path there.
         if (p.medium >= 0) {
-            FreeFlight ff = sample_free_flight(scene.media[p.medium], p.pos, p.dir, t_hit, p.rng, counts);
+            FreeFlight ff =
+                sample_free_flight(scene.media[p.medium], segment_origin(p), p.dir, t_hit + p.lead, p.rng, counts);
             p.throughput *= ff.weight;
             if (ff.scattered) {
-                steps_.scatter_in_medium(p, shadow, index, p.pos + p.dir * ff.t);
+                steps_.scatter_in_medium(p, shadow, index, segment_point(p, ff.t));
                 continue;
             }
         }

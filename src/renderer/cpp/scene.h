@@ -76,6 +76,19 @@ struct Camera {
     }
 };
 
+// The start of a ray that leaves a surface. Its origin lies an offset off the surface;
+// `lead` is the length of the ray's line between the surface and that origin. A medium on
+// that side fills the lead too, and media estimators add it back: skipping it would lose
+// the light of a sliver of medium at every surface and boundary a ray leaves, which in a
+// dense medium, or far from the scene's origin where offsets grow, darkens the image.
+struct RayStart {
+    Vec3 origin;
+    double lead = 0;
+};
+// Grazing rays take the lead of this cosine: the surface there is beside the ray, not
+// behind it, and a longer lead could reach past the triangle's edge.
+constexpr double kMinLeadCosine = 0.1;
+
 class Scene {
 public:
     std::vector<Triangle> triangles;
@@ -94,11 +107,12 @@ public:
 
     void finalize();
 
-    // Offset a point on triangle `tri` towards the side of direction d.
-    Vec3 offset(const Vec3 &p, int tri, const Vec3 &d) const {
+    // Where a ray leaving point p of triangle `tri` in direction d starts: an offset off the
+    // surface, on d's side, so that Embree does not find the surface again.
+    RayStart spawn(const Vec3 &p, int tri, const Vec3 &d) const {
         const Vec3 &n = triangles[tri].n;
-        double eps = ray_epsilon * (1 + max_abs_component(p) / scene_radius);
-        return p + n * (dot(d, n) > 0 ? eps : -eps);
+        const double eps = offset_length(p), cos_d = dot(d, n);
+        return {p + n * (cos_d > 0 ? eps : -eps), eps / std::max(std::abs(cos_d), kMinLeadCosine)};
     }
     double offset_length(const Vec3 &p) const {
         return ray_epsilon * (1 + max_abs_component(p) / scene_radius);

@@ -20,12 +20,37 @@ constexpr float kFarDistance = 1e30f;
 // coincident faces) and ends.
 constexpr int kMaxNullCrossings = 256;
 
+// A path's next ray starts at p.pos; its medium segment starts p.lead behind it, on the
+// surface the path leaves (RayStart). Set the path's direction first.
+template <typename Path>
+void start_path_at(Path &p, const RayStart &start) {
+    p.pos = start.origin;
+    p.lead = start.lead;
+}
+// A vertex inside a medium (or a camera or light in open space): no surface behind it.
+template <typename Path>
+void start_path_at(Path &p, const Vec3 &x) {
+    p.pos = x;
+    p.lead = 0;
+}
+template <typename Path>
+Vec3 segment_origin(const Path &p) {
+    return p.pos - p.dir * p.lead;
+}
+// The point at distance t along the medium segment. One in the lead lies nearer the surface
+// than an offset; it still starts its own rays from where it is: moving it out to p.pos
+// would darken a medium whose mean free path is shorter than an offset, as skipping did.
+template <typename Path>
+Vec3 segment_point(const Path &p, double t) {
+    return p.pos + p.dir * (t - p.lead);
+}
+
 // An index-matched (null) boundary at x on triangle `tri`: the path changes medium
 // and keeps its direction, depth and MIS state. Crossings count over the whole path.
 template <typename Path>
 void cross_null_boundary(const Scene &scene, Path &p, int tri, const Vec3 &x) {
     p.medium = scene.triangles[tri].medium_after(p.medium, p.dir);
-    p.pos = scene.offset(x, tri, p.dir);
+    start_path_at(p, scene.spawn(x, tri, p.dir));
     p.alive = ++p.null_crossings < kMaxNullCrossings;
 }
 
@@ -67,17 +92,19 @@ struct ShadowRay {
     bool to_infinity = false; // directional lights
     double target_eps = 0;    // stop this short of the target (it lies on a surface)
     int medium = -1;
+    double lead = 0;          // medium behind the origin (RayStart)
     int64_t receiver = 0;     // what receives the contribution (a path or a pixel)
     RGB contribution;
     Sampler rng;
     bool live = false;
     // Distance left along dir; origins move off surfaces, so it is measured, not tracked.
     double remaining() const { return to_infinity ? kInf : dot(target - origin, dir); }
-    // Start at p (already offset off a surface), pointing exactly at the target: an
+    // Start at `start` (offset off a surface, or a vertex), pointing exactly at the target: an
     // offset origin with the old direction would pass beside the target and could
     // hit the light's own surface at grazing angles.
-    void restart_at(const Vec3 &p) {
-        origin = p;
+    void restart_at(const RayStart &start) {
+        origin = start.origin;
+        lead = start.lead;
         if (!to_infinity) dir = normalize(target - origin);
     }
 };
@@ -184,7 +211,8 @@ public:
             }
             double t = blocked ? double(hits.tfar[j]) : remaining;
             if (r.medium >= 0) {
-                r.contribution *= transmittance(scene.media[r.medium], r.origin, r.dir, t, r.rng, counts);
+                r.contribution *=
+                    transmittance(scene.media[r.medium], r.origin - r.dir * r.lead, r.dir, t + r.lead, r.rng, counts);
             }
             if (!blocked) {
                 r.live = false;
@@ -198,7 +226,7 @@ public:
             const Triangle &T = scene.triangles[tri];
             Vec3 p = r.origin + r.dir * t;
             r.medium = T.medium_after(r.medium, r.dir);
-            r.restart_at(scene.offset(p, tri, r.dir));
+            r.restart_at(scene.spawn(p, tri, r.dir));
         }
         stats += counts;
     }
