@@ -343,6 +343,9 @@ def test_bad_overrides(tmp_path):
         load_scene(path, ["media.fog.scale=2"])
     fog = "media.fog={type: homogeneous, sigma_t: 1, albedo: 0.5}"
     assert load_scene(path, [fog]).media["fog"].sigma_t == (1.0, 1.0, 1.0)
+    # a reference the override left dangling names the override that emptied its section
+    msg = expect_error(path, "shapes[0].material", "unknown material", overrides=["materials={}"])
+    assert "(defined after override 'materials={}': none defined)" in msg
     # a key the override itself creates is blamed on the override, not on the file
     msg = expect_error(path, "foo", "unknown key", overrides=["foo.bar=1"])
     assert "override 'foo.bar=1'" in msg
