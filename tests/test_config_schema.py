@@ -162,7 +162,7 @@ def test_variants_are_study_methods(tmp_path: Path) -> None:
         "pgi": _fake_pgi(tmp_path),
         "set": ["film.width=8"],
         "variants": {**DELTA, "lt-short": {"method": "lt", "set": ["method.x=1"]}},
-        "method_args": {"pt": ["--spp", "4"]},
+        "method_args": {"pt": ["--set", "method.spp_per_wave=4"]},
         "baseline": "pt-delta",
     }
     validate(cfg, SCHEMA)
@@ -171,9 +171,9 @@ def test_variants_are_study_methods(tmp_path: Path) -> None:
     assert plan.base_method("pt-delta") == "pt" and plan.base_method("pt") == "pt"
     assert plan.render_args("cbox", "pt-delta") == [
         "--method", "pt", "--set", "film.width=8",
-        "--set", "integrator.estimator=delta", "--spp", "4",
+        "--set", "integrator.estimator=delta", "--set", "method.spp_per_wave=4",
     ]  # fmt: skip
-    plain = ["--method", "pt", "--set", "film.width=8", "--spp", "4"]
+    plain = ["--method", "pt", "--set", "film.width=8", "--set", "method.spp_per_wave=4"]
     assert plan.render_args("cbox", "pt") == plain
     assert plan.variants["pt-delta"].describe() == "pt with integrator.estimator=delta"
     excluded = make_plan({**cfg, "exclude_methods": ["lt-short"]}, tmp_path, check_scenes=False)
@@ -210,6 +210,43 @@ def test_plan_loads_each_scene_with_each_variant() -> None:
     with pytest.raises(PlanError, match=r"variants: 'mi-delta': --set integrator.estimator="):
         make_plan({**GOOD, "variants": unread}, ROOT)
     assert make_plan({**GOOD, "variants": DELTA}, ROOT).methods == ("pt", "pt-delta")
+
+
+@pytest.mark.parametrize(
+    ("args", "expect"),
+    [
+        (["--bogus-flag"], r"method_args: pt: .*unrecognized arguments: --bogus-flag"),
+        (["--spp", "64"], r"method_args: pt: --spp: the workflow sets this itself"),
+        (["--meth", "lt"], r"method_args: pt: --method: the workflow sets this itself"),
+        (["--set", "film.width=8"], r"method_args: pt: --set film.width=8: .*method.KEY=VALUE"),
+        (["--set", "method.nosuch=1"], r"method_args: pt: method pt: unknown parameter"),
+    ],
+)
+def test_plan_reads_method_args_as_pgi_render_would(args: list, expect: str) -> None:
+    """Refused before any job: each of these failed the render jobs (or, --spp, stopped the
+    runs before their last snapshot) after the references had run."""
+    with pytest.raises(PlanError, match=expect):
+        make_plan({**GOOD, "method_args": {"pt": args}}, ROOT)
+    good = {"pt": ["-q", "--set", "method.spp_per_wave=2"]}
+    assert make_plan({**GOOD, "method_args": good}, ROOT).method_args == {
+        "pt": ("-q", "--set", "method.spp_per_wave=2")
+    }
+
+
+def test_plan_refuses_a_set_a_render_or_the_reference_would_refuse() -> None:
+    """`set` reaches the Mitsuba references: the estimator of our tracking belongs in a
+    variant (the study used to render every run, then fail at the first reference)."""
+    with pytest.raises(PlanError, match=r"set \(scene 'cbox'\): .*the Mitsuba reference too"):
+        make_plan({**GOOD, "set": ["integrator.estimator=delta"]}, ROOT)
+    scenes = [{"name": "cbox", "set": ["integrator.march_step=0.01"]}]
+    with pytest.raises(PlanError, match=r"integrator.march_step=0.01: method mitsuba"):
+        make_plan({**GOOD, "scenes": scenes}, ROOT)
+
+
+def test_plan_refuses_a_variant_parameter_its_method_lacks() -> None:
+    bad = {"pt-x": {"method": "pt", "set": ["method.nonexistent=3"]}}
+    with pytest.raises(PlanError, match=r"variants: 'pt-x': method pt: unknown parameter"):
+        make_plan({**GOOD, "variants": bad}, ROOT)
 
 
 def test_plan_records_the_code_fingerprints_and_refuses_a_pgi_without_them(tmp_path: Path) -> None:

@@ -21,7 +21,7 @@ from typing import Any
 # The comment line with which `pgi methods` announces methods not implemented yet.
 from renderer.cli import PLANNED_PREFIX
 from renderer.errors import PgiError
-from renderer.methods import check_overrides
+from renderer.methods import check_method_parameters, check_overrides
 from renderer.scene import load_scene
 
 
@@ -188,6 +188,74 @@ def check_scene(spec: SceneSpec, extra: tuple[str, ...] = (), where: str = "scen
         raise PlanError(f"{where}: '{spec.name}': {e}") from e
 
 
+def check_scene_sets(spec: SceneSpec, methods: list[str]) -> None:
+    """A study's `set` reaches every render of the scene and its Mitsuba reference: a setting
+    one of them would refuse (the transmittance estimator: Mitsuba has its own) stops the
+    plan, not the first job to meet it."""
+    for method in ["mitsuba", *methods]:
+        try:
+            check_overrides(method, spec.set)
+        except PgiError as e:
+            whom = "the Mitsuba reference" if method == "mitsuba" else f"method {method}"
+            raise PlanError(
+                f"set (scene '{spec.name}'): {e}; `set` reaches {whom} too: put settings of "
+                "one method in a variant (variants: {label: {method: ..., set: [...]}})"
+            ) from None
+
+
+def check_method_args(method: str, args: tuple[str, ...]) -> None:
+    """``method_args`` as `pgi render` would read them, before any job runs: options it knows,
+    none the workflow sets itself (``--spp`` would stop a run before its last snapshot), and
+    ``--set`` only for method parameters (a scene value would change what the reference
+    shows)."""
+    import contextlib
+    import io
+
+    from renderer.cli import build_parser
+    from renderer.methods import method_ids
+
+    where = f"method_args: {method}"
+    output = "<workflow>.exr"
+    stderr = io.StringIO()
+    try:
+        with contextlib.redirect_stderr(stderr):
+            parsed = build_parser().parse_args(
+                ["render", "scene", "--method", method, "-o", output, *args]
+            )
+    except SystemExit:
+        why = stderr.getvalue().strip().splitlines()
+        raise PlanError(
+            f"{where}: {why[-1] if why else 'not valid `pgi render` arguments'}"
+        ) from None
+    owned = {
+        "--method": parsed.method != method,
+        "--time": parsed.time is not None,
+        "--spp": parsed.spp is not None,
+        "--snapshots": parsed.snapshots is not None,
+        "--seed": parsed.seed != 0,
+        "--threads": parsed.threads != 1,
+        "-o/--output": parsed.output != output,
+    }
+    given = [option for option, set_here in owned.items() if set_here]
+    if given:
+        raise PlanError(f"{where}: {', '.join(given)}: the workflow sets this itself")
+    keys = []
+    for kv in parsed.set:
+        key = kv.split("=", 1)[0]
+        if not key.startswith("method.") or "=" not in kv:
+            raise PlanError(
+                f"{where}: --set {kv}: method_args may set method.KEY=VALUE only; a scene "
+                "value belongs in `set`, where the reference sees it too"
+            )
+        keys.append(key[len("method.") :])
+    if method not in method_ids():
+        return  # announced, not implemented: its parameters are not known yet
+    try:
+        check_method_parameters(method, keys)
+    except PgiError as e:
+        raise PlanError(f"{where}: {e}") from None
+
+
 def make_variants(
     config: dict[str, Any], avail: list[str], planned: list[str], check: bool
 ) -> dict[str, VariantSpec]:
@@ -267,8 +335,11 @@ def make_plan(
     if check_scenes and str(config.get("pgi", "auto")) == "auto":
         for label in labels:
             scene_keys = tuple(kv for kv in variants[label].set if not kv.startswith("method."))
+            method_keys = [kv.split("=", 1)[0][len("method.") :] for kv in variants[label].set
+                           if kv.startswith("method.")]  # fmt: skip
             try:  # as `pgi render` would, before any job runs
                 check_overrides(variants[label].method, scene_keys)
+                check_method_parameters(variants[label].method, method_keys)
             except PgiError as e:
                 raise PlanError(f"variants: '{label}': {e}") from e
             for spec in scenes.values() if scene_keys else ():
@@ -295,6 +366,16 @@ def make_plan(
                     f"{key}: unknown method(s) {', '.join(unknown)}; "
                     f"`pgi methods` lists: {', '.join(avail) or 'none'}"
                 )
+    method_args = {
+        k: tuple(str(a) for a in v) for k, v in (config.get("method_args") or {}).items()
+    }
+    if check_scenes and str(config.get("pgi", "auto")) == "auto":
+        for method, args in method_args.items():
+            check_method_args(method, args)
+        for spec in scenes.values():
+            check_scene_sets(
+                spec, sorted({variants[m].method if m in variants else m for m in methods})
+            )
     baseline = str(config.get("baseline", "pt"))
     if baseline not in methods:
         raise PlanError(
@@ -330,7 +411,7 @@ def make_plan(
         budgets=budgets,
         seeds=tuple(int(s) for s in config["seeds"]),
         ref_seed=ref_seed,
-        method_args={k: tuple(v) for k, v in (config.get("method_args") or {}).items()},
+        method_args=method_args,
         variants={label: variants[label] for label in labels},
         baseline=baseline,
         primary_metric=str(config.get("primary_metric", "relmse")),

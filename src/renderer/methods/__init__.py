@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from importlib import import_module
 from typing import Protocol
 
@@ -16,6 +17,7 @@ class Method(Protocol):
 
     id: str
     description: str
+    parameters: frozenset[str]  # the KEYs `--set method.KEY=VALUE` may set
 
     # spp_budget: the run stops at this many samples per pixel; methods that batch
     # samples per iteration keep their batches a divisor of it.
@@ -76,6 +78,13 @@ def _holds(value: object, keys: list[str]) -> bool:
             return False
         value = value[k]
     return True
+
+
+def check_method_parameters(method_id: str, names: Iterable[str]) -> None:
+    """Refuses `method.KEY` names the method does not know, before any scene is loaded."""
+    from .params import MethodParams
+
+    MethodParams(method_id, dict.fromkeys(names), get_method(method_id).parameters)
 
 
 def method_ids() -> list[str]:

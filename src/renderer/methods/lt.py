@@ -26,7 +26,6 @@ _DEFAULT_PATHS = 1 << 16
 # Vertices one iteration may record: the memory bound. Each costs about 270 bytes with its
 # connection ray and splat, so the default bounds an iteration at about 2.3 GB.
 _DEFAULT_MAX_RECORDS = 1 << 23
-_PARAMS = {"light_paths", "max_records"}
 
 
 def light_paths_for(pixels: int, spp_budget: int | None) -> int:
@@ -40,11 +39,12 @@ def light_paths_for(pixels: int, spp_budget: int | None) -> int:
 class LightTracing:
     id = "lt"
     description = "light tracing: light paths connected to the camera"
+    parameters = frozenset({"light_paths", "max_records"})
 
     def __init__(
         self, scene: Scene, *, seed: int, threads: int, params: dict, spp_budget: int | None = None
     ) -> None:
-        p = MethodParams(self.id, params, _PARAMS)
+        p = MethodParams(self.id, params, self.parameters)
         pixels = scene.film.width * scene.film.height
         paths = p.integer("light_paths", light_paths_for(pixels, spp_budget), lo=1)
         if spp_budget and (spp_budget * pixels) % paths:

@@ -31,11 +31,12 @@ def default_spp(scene: Scene, spp_budget: int | None) -> int:
 class MitsubaVolpath:
     id = "mitsuba"
     description = "Mitsuba 3 volpath at the same budget"
+    parameters = frozenset({"spp_per_iteration"})
 
     def __init__(
         self, scene: Scene, *, seed: int, threads: int, params: dict, spp_budget: int | None = None
     ) -> None:
-        p = MethodParams(self.id, params, {"spp_per_iteration"})
+        p = MethodParams(self.id, params, self.parameters)
         spp = p.spp_per_iteration("spp_per_iteration", default_spp(scene, spp_budget), spp_budget)
         self.mi = import_mitsuba()
         set_threads(threads)

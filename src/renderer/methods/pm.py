@@ -34,19 +34,14 @@ DEFAULT_RADIUS_SCALE = 0.02
 class PhotonMapping:
     id = "pm"
     description = "photon mapping with volume photons and the beam radiance estimate (fixed radius)"
-    _known = {
-        "photons",
-        "spp_per_iteration",
-        "radius",
-        "volume_radius",
-        "radius_scale",
-        "max_records",
-    }
+    parameters = frozenset(
+        {"photons", "spp_per_iteration", "radius", "volume_radius", "radius_scale", "max_records"}
+    )
 
     def __init__(
         self, scene: Scene, *, seed: int, threads: int, params: dict, spp_budget: int | None = None
     ) -> None:
-        p = MethodParams(self.id, params, self._known)
+        p = MethodParams(self.id, params, self.parameters)
         photons = p.integer("photons", DEFAULT_PHOTONS, lo=1)
         spp = p.spp_per_iteration("spp_per_iteration", 1, spp_budget)
         p.paths_fit_in_memory("photons", photons, "photon paths")

@@ -55,28 +55,30 @@ DEFAULT_SURFACE_ALPHA = 2 / 3
 # Without surface photons: diffuse bounces after which camera paths still gather beams
 # (then they path-trace media).
 DEFAULT_GATHER_BOUNCES = 0
-_PARAMS = {
-    "light_paths",
-    "spp_per_iteration",
-    "radius",
-    "alpha",
-    "max_beams",
-    "max_records",
-    "piece_length",
-    "gather_bounces",
-    "surface_radius",
-    "surface_alpha",
-}
 
 
 class ProgressivePhotonBeams:
     id = "ppb"
     description = "progressive photon beams (beam x beam 1D) in media, photons on surfaces"
+    parameters = frozenset(
+        {
+            "light_paths",
+            "spp_per_iteration",
+            "radius",
+            "alpha",
+            "max_beams",
+            "max_records",
+            "piece_length",
+            "gather_bounces",
+            "surface_radius",
+            "surface_alpha",
+        }
+    )
 
     def __init__(
         self, scene: Scene, *, seed: int, threads: int, params: dict, spp_budget: int | None = None
     ) -> None:
-        p = MethodParams(self.id, params, _PARAMS)
+        p = MethodParams(self.id, params, self.parameters)
         light_paths = p.integer("light_paths", DEFAULT_LIGHT_PATHS, lo=1)
         spp = p.spp_per_iteration("spp_per_iteration", 1, spp_budget)
         p.paths_fit_in_memory("light_paths", light_paths, "light paths")

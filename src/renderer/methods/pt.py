@@ -35,12 +35,13 @@ def wave_spp(pixels: int, spp_budget: int | None) -> int:
 class PathTracing:
     id = "pt"
     description = "volumetric path tracing, next-event estimation and MIS"
+    parameters = frozenset({"spp_per_wave"})
 
     def __init__(
         self, scene: Scene, *, seed: int, threads: int, params: dict, spp_budget: int | None = None
     ) -> None:
         pixels = scene.film.width * scene.film.height
-        p = MethodParams(self.id, params, {"spp_per_wave"})
+        p = MethodParams(self.id, params, self.parameters)
         spp_per_wave = p.spp_per_iteration("spp_per_wave", wave_spp(pixels, spp_budget), spp_budget)
         p.paths_fit_in_memory("spp_per_wave", spp_per_wave * pixels, "camera paths")
         self.native = build_native_scene(scene)

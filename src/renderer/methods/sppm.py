@@ -31,12 +31,12 @@ DEFAULT_INITIAL_RADIUS_SCALE = 0.04
 class StochasticProgressivePhotonMapping(PhotonMapping):
     id = "sppm"
     description = "stochastic progressive photon mapping, surfaces and media (Knaus-Zwicker radii)"
-    _known = PhotonMapping._known | {"alpha", "volume_alpha"}
+    parameters = PhotonMapping.parameters | {"alpha", "volume_alpha"}
 
     def __init__(
         self, scene: Scene, *, seed: int, threads: int, params: dict, spp_budget: int | None = None
     ) -> None:
-        p = MethodParams(self.id, params, self._known)
+        p = MethodParams(self.id, params, self.parameters)
         alpha = p.number("alpha", DEFAULT_ALPHA, lo=0, hi=1, lo_open=True, hi_open=True)
         volume_alpha = p.number("volume_alpha", alpha, lo=0, hi=1, lo_open=True, hi_open=True)
         params = {k: v for k, v in params.items() if k not in ("alpha", "volume_alpha")}
