@@ -548,6 +548,27 @@ def test_scene_sources_are_every_file_a_scene_reads(tmp_path: Path) -> None:
         assert scene_sources(tmp_path / "s") == [tmp_path / "s" / "scene.yaml"]
 
 
+def test_assets_named_by_overrides_are_sources_and_change_the_digest(tmp_path: Path) -> None:
+    """A study's `set: [media.smoke.density=other.npy]` reads other.npy: editing it must rerun
+    the scene's renders (the workflow once said "nothing to be done")."""
+    from renderer.scene.loader import scene_content_digest
+
+    scene = tmp_path / "grid"
+    shutil.copytree(find_scene_file("cbox-grid").parent, scene)
+    (scene / "scene.yaml").write_text(
+        (scene / "scene.yaml").read_text().replace("../cbox/", str(SCENES / "cbox") + "/")
+    )
+    np.save(scene / "other.npy", np.ones((2, 2, 2), np.float32))
+    sets = ["film.width=8", "media.smoke.density=other.npy", "shapes[0]={type: mesh, file: x.ply}"]
+    assert [p.name for p in scene_sources(scene, sets)] == [
+        "scene.yaml", "box.yaml", "density.npy", "other.npy",
+    ]  # fmt: skip
+    before, unread = scene_content_digest(scene, sets), scene_content_digest(scene)
+    np.save(scene / "other.npy", 3 * np.ones((2, 2, 2), np.float32))
+    assert scene_content_digest(scene, sets) != before
+    assert scene_content_digest(scene) == unread  # without the override it is not read
+
+
 # --------------------------------------------------------------------------- found by review
 
 

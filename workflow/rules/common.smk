@@ -26,7 +26,8 @@ def scene_yaml(wildcards):
 
 @functools.cache
 def _scene_sources(scene):
-    return tuple(_relative(p) for p in scene_sources(PLAN.scenes[scene].path))
+    spec = PLAN.scenes[scene]
+    return tuple(_relative(p) for p in scene_sources(spec.path, spec.set))
 
 
 def scene_files(wildcards):
@@ -36,7 +37,8 @@ def scene_files(wildcards):
 
 @functools.cache
 def _scene_digest(scene):
-    return scene_content_digest(PLAN.scenes[scene].path)
+    spec = PLAN.scenes[scene]  # an asset named by a `set` override counts too
+    return scene_content_digest(spec.path, spec.set)
 
 
 def scene_digest(wildcards):

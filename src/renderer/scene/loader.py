@@ -998,10 +998,11 @@ def _or_empty(value: Any, empty: Any) -> Any:
     return empty if value is None else value
 
 
-def _scene_documents(main: Path) -> list[tuple[Path, dict | None]]:
+def _scene_documents(main: Path, overrides: Sequence[str] = ()) -> list[tuple[Path, dict | None]]:
     """Every file the scene file ``main`` reads, each with its parsed YAML document (None for
     an asset, or a scene file that cannot be parsed): the main file, its includes, then the
-    assets they name. Each file is read once."""
+    assets they and the ``key=value`` overrides name (an override's paths are the main
+    file's, as the loader reads them). Each file is read once."""
     try:
         doc = _read_yaml(main)
     except PgiError:
@@ -1016,36 +1017,46 @@ def _scene_documents(main: Path) -> list[tuple[Path, dict | None]]:
             found.append((file, doc if file == main else _read_yaml(file)))
         except PgiError:
             found.append((file, None))
+    parts = [(file.parent, part) for file, part in found if part is not None]
+    for kv in overrides:
+        key, _, raw = kv.partition("=")
+        try:
+            value = parse_yaml_value(raw, f"--set {key}")
+        except PgiError:
+            continue  # loading the scene reports it
+        last = re.sub(r"(\[\d+\])+$", "", key.strip().rsplit(".", 1)[-1])
+        parts.append((main.parent, {last: value}))
     seen = set(files)
-    for file, part in list(found):
-        for asset in _named_assets(part, file.parent) if part is not None else ():
+    for here, part in parts:
+        for asset in _named_assets(part, here):
             if asset.is_file() and asset not in seen:
                 seen.add(asset)
                 found.append((asset, None))
     return found
 
 
-def scene_sources(path: str | Path) -> list[Path]:
-    """Every file a scene reads: its scene file, the files it includes and the assets they name
-    (meshes, density grids, phase tables), each resolved as the loader resolves it. Files that
-    cannot be found or read are left out (loading the scene reports them); a workflow makes
-    these its inputs so that editing any of them reruns what depends on the scene."""
+def scene_sources(path: str | Path, overrides: Sequence[str] = ()) -> list[Path]:
+    """Every file a scene reads: its scene file, the files it includes and the assets they and
+    the ``overrides`` name (meshes, density grids, phase tables), each resolved as the loader
+    resolves it. Files that cannot be found or read are left out (loading the scene reports
+    them); a workflow makes these its inputs so that editing any of them reruns what depends
+    on the scene."""
     main = find_scene_file(path).resolve()  # resolved: ".." after a symlink means its target's
-    return [file for file, _ in _scene_documents(main)]
+    return [file for file, _ in _scene_documents(main, overrides)]
 
 
 # Keys only the report reads: editing them changes no image.
 REPORT_ONLY_KEYS = ("description", "stresses", "expected_winners")
 
 
-def scene_content_digest(path: str | Path) -> str:
+def scene_content_digest(path: str | Path, overrides: Sequence[str] = ()) -> str:
     """A digest of what a scene renders: its YAML files as parsed, without the report-only
     keys (so comments, layout and a scene's description do not count), and the bytes of
-    the assets they name (and of scene files that cannot be parsed). The workflow reruns a
+    the assets they and the overrides name (and of scene files that cannot be parsed). The workflow reruns a
     scene's renders and references when it changes."""
     h = hashlib.sha256()
     main = find_scene_file(path).resolve()
-    for file, doc in _scene_documents(main):
+    for file, doc in _scene_documents(main, overrides):
         h.update(os.path.relpath(file, main.parent).encode() + b"\0")  # stable if moved
         if doc is None:
             data = file.read_bytes()
