@@ -12,6 +12,8 @@ import os
 import shlex
 import sys
 
+import jsonschema
+
 from snakemake.exceptions import WorkflowError
 from snakemake.utils import min_version, validate
 
@@ -36,12 +38,22 @@ if not workflow.overwrite_configfiles:
 
 
 
-validate(config, "configs/schema.yaml")
+# A config that cannot run stops here, before any job: one line naming the config file(s)
+# and the key (not the schema, not a traceback), non-zero exit.
+CONFIG_FILES = ", ".join(str(f) for f in workflow.overwrite_configfiles) or "configs/default.yaml"
+try:
+    validate(config, "configs/schema.yaml")
+except WorkflowError as e:
+    why = e.__cause__ or e.__context__  # the schema's own error
+    if not isinstance(why, jsonschema.ValidationError):
+        raise
+    key = "".join(f"[{k}]" if isinstance(k, int) else f".{k}" for k in why.absolute_path)
+    sys.exit(f"config ({CONFIG_FILES}): {key.lstrip('.') or 'top level'}: {why.message}")
 
 try:
     PLAN = make_plan(config, workflow.basedir)
 except PlanError as e:
-    raise WorkflowError(f"config: {e}")
+    sys.exit(f"config ({CONFIG_FILES}): {e}")
 
 R = str(PLAN.results)
 REP = str(PLAN.reports)

@@ -5,17 +5,21 @@
 # no reference or comparison runs beside it either (pgi still gets the config's threads).
 
 
-def render_cores(wildcards):
-    if not workflow.local_exec:
-        return PLAN.threads
-    # `pgi render` would refuse the count (its own check): say so before any job runs.
+# `pgi render` would refuse a thread count above the machine's cores (its own check): say so
+# before any job runs.
+if workflow.local_exec:
     try:
         check_threads(PLAN.threads)
     except PgiError:
-        raise WorkflowError(
-            f"config: threads: {PLAN.threads} is more than this machine's "
+        sys.exit(
+            f"config ({CONFIG_FILES}): threads: {PLAN.threads} is more than this machine's "
             f"{available_cores()} cores; every render would fail (use --config threads=N)"
-        ) from None
+        )
+
+
+def render_cores(wildcards):
+    if not workflow.local_exec:
+        return PLAN.threads
     return max(PLAN.threads, workflow.cores)
 
 
