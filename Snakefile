@@ -34,7 +34,7 @@ from compare.plan import PlanError, make_plan  # noqa: E402
 # default study's folders and overrides (missing keys get the schema's defaults instead).
 if not workflow.overwrite_configfiles:
 
-    configfile: "configs/default.yaml"
+    configfile: os.path.join(workflow.basedir, "configs", "default.yaml")
 
 
 

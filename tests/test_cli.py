@@ -448,6 +448,18 @@ def test_fingerprints_cover_the_code_each_output_runs():
     assert json.loads(r.stdout) == fingerprint.fingerprints()
 
 
+def test_fingerprints_follow_the_mitsuba_variant(monkeypatch):
+    """Mitsuba's llvm and scalar variants draw different random streams: switching reruns
+    the references and Mitsuba's renders (the workflow once kept them)."""
+    from renderer import fingerprint
+
+    monkeypatch.setenv("PGI_MITSUBA_VARIANT", "scalar_rgb")
+    scalar = fingerprint.fingerprints()
+    monkeypatch.setenv("PGI_MITSUBA_VARIANT", "llvm_ad_rgb")
+    llvm = fingerprint.fingerprints()
+    assert scalar["reference"] != llvm["reference"] and scalar["render"] != llvm["render"]
+
+
 def test_outputs_never_overwrite_a_file_the_scene_reads(tmp_path):
     """`-o scene.exr` next to a scene file `scene.json` would have replaced it by the sidecar."""
     scene = tmp_path / "shot.json"

@@ -76,9 +76,23 @@ def reference_sources() -> list[Path]:
     return sorted({Path(line).resolve() for line in proc.stdout.splitlines() if line})
 
 
+def mitsuba_variant_setting() -> str:
+    """The Mitsuba variant asked for (PGI_MITSUBA_VARIANT), or which one the automatic choice
+    takes (LLVM when a libLLVM is found), without importing Mitsuba."""
+    from .mitsuba_env import find_libllvm
+
+    asked = os.environ.get("PGI_MITSUBA_VARIANT")
+    if asked:
+        return asked
+    return "auto-llvm" if os.environ.get("DRJIT_LIBLLVM_PATH") or find_libllvm() else "auto-scalar"
+
+
 def fingerprints() -> dict[str, str]:
     """{"render": ..., "reference": ...}: short hex digests of the code behind each."""
     libraries = {name: _version(name) for name in ("mitsuba", "drjit", "embreex")}
+    # Which Mitsuba variant runs (renderer.mitsuba_env): llvm and scalar differ in their
+    # random streams, so a switch reruns Mitsuba's images.
+    libraries["mitsuba-variant"] = mitsuba_variant_setting()
     return {
         "render": _digest(render_sources(), libraries),
         "reference": _digest(

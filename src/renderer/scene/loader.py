@@ -1052,8 +1052,8 @@ REPORT_ONLY_KEYS = ("description", "stresses", "expected_winners")
 def scene_content_digest(path: str | Path, overrides: Sequence[str] = ()) -> str:
     """A digest of what a scene renders: its YAML files as parsed, without the report-only
     keys (so comments, layout and a scene's description do not count), and the bytes of
-    the assets they and the overrides name (and of scene files that cannot be parsed). The workflow reruns a
-    scene's renders and references when it changes."""
+    the assets they and the overrides name (and of scene files that cannot be parsed). The
+    workflow reruns a scene's renders and references when it changes."""
     h = hashlib.sha256()
     main = find_scene_file(path).resolve()
     for file, doc in _scene_documents(main, overrides):
