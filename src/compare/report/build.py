@@ -440,6 +440,9 @@ def build_index(spec: dict[str, Any]) -> None:
                     rows.append("<td></td>")
                     continue
                 r0 = r.iloc[0]
+                if not math.isfinite(float(r0.seconds)):  # e.g. SSIM is NaN on tiny films
+                    rows.append('<td title="no finite error to reach the target with">–</td>')
+                    continue
                 star = "*" if bool(r0.extrapolated) else ""
                 sp = r0.get(col, math.nan)
                 bound = _BOUND_SIGN.get(str(r0.get("bound", "")), "")
