@@ -448,6 +448,22 @@ def test_fingerprints_cover_the_code_each_output_runs():
     assert json.loads(r.stdout) == fingerprint.fingerprints()
 
 
+def test_fingerprint_refuses_a_core_older_than_its_sources(tmp_path):
+    """An edited C++ source not yet built: the workflow would record its digest for renders
+    that ran the old binary."""
+    import os
+
+    from renderer import fingerprint
+
+    core, source = tmp_path / "_core.so", fingerprint.PACKAGE / "cpp" / "pt.cpp"
+    core.write_bytes(b"")
+    os.utime(core, (source.stat().st_mtime + 10,) * 2)
+    fingerprint.check_core_is_current(core, [source])  # built after the source: fine
+    os.utime(core, (source.stat().st_mtime - 10,) * 2)
+    with pytest.raises(PgiError, match=r"renderer/cpp/pt.cpp is newer than the built C\+\+ core"):
+        fingerprint.check_core_is_current(core, [source])
+
+
 def test_fingerprints_follow_the_mitsuba_variant(monkeypatch):
     """Mitsuba's llvm and scalar variants draw different random streams: switching reruns
     the references and Mitsuba's renders (the workflow once kept them)."""

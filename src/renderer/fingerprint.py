@@ -16,6 +16,8 @@ import sys
 from importlib import metadata
 from pathlib import Path
 
+from .errors import PgiError
+
 PACKAGE = Path(__file__).resolve().parent
 SOURCE_SUFFIXES = (".py", ".cpp", ".h")
 # What `pgi reference` imports; their renderer modules are the reference's code.
@@ -87,8 +89,25 @@ def mitsuba_variant_setting() -> str:
     return "auto-llvm" if os.environ.get("DRJIT_LIBLLVM_PATH") or find_libllvm() else "auto-scalar"
 
 
+def check_core_is_current(core: Path, sources: list[Path]) -> None:
+    """The render fingerprint hashes the C++ sources, so they must be what the built core was
+    compiled from: a source edited after the last build would be recorded as the code of
+    renders that ran the old binary."""
+    built = core.stat().st_mtime
+    newer = sorted(p for p in sources if p.suffix in (".cpp", ".h") and p.stat().st_mtime > built)
+    if newer:
+        more = f" (and {len(newer) - 1} more)" if len(newer) > 1 else ""
+        raise PgiError(
+            f"{newer[0].relative_to(PACKAGE.parent).as_posix()}{more} is newer than the built "
+            "C++ core, so renders would not run it: rebuild (pip install -e .)"
+        )
+
+
 def fingerprints() -> dict[str, str]:
     """{"render": ..., "reference": ...}: short hex digests of the code behind each."""
+    from . import _core
+
+    check_core_is_current(Path(_core.__file__), render_sources())
     libraries = {name: _version(name) for name in ("mitsuba", "drjit", "embreex")}
     # Which Mitsuba variant runs (renderer.mitsuba_env): llvm and scalar differ in their
     # random streams, so a switch reruns Mitsuba's images.
