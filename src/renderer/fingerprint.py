@@ -99,7 +99,7 @@ def check_core_is_current(core: Path, sources: list[Path]) -> None:
         more = f" (and {len(newer) - 1} more)" if len(newer) > 1 else ""
         raise PgiError(
             f"{newer[0].relative_to(PACKAGE.parent).as_posix()}{more} is newer than the built "
-            "C++ core, so renders would not run it: rebuild (pip install -e .)"
+            "C++ core, so renders would not run it: rebuild it (./setup.sh --no-run)"
         )
 
 
