@@ -289,6 +289,28 @@ def report(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return rep
 
 
+def test_a_time_to_error_never_reached_is_a_dash(report: Path, tmp_path: Path) -> None:
+    """No finite time (no finite error, as SSIM on films under 11 px): a dash, not "– s*",
+    which read as an extrapolated time."""
+    tables = tmp_path / "tables"
+    tables.mkdir()
+    for csv in (report / "tables").glob("*.csv"):
+        (tables / csv.name).write_bytes(csv.read_bytes())
+    tte = pd.read_csv(tables / "time_to_error.csv")
+    tte.loc[tte.method == "lt", "seconds"] = math.nan
+    tte.to_csv(tables / "time_to_error.csv", index=False)
+    build_index(
+        {
+            "reports": str(tmp_path / "out"), "tables": str(tables), "metric": "relmse",
+            "baseline": "pt", "factor": 10, "title": "t", "study": "t", "methods": ["pt", "lt"],
+            "scenes": ["toy"], "refs": {"toy": str(report.parent / "ref.json")},
+        }
+    )  # fmt: skip
+    index = (tmp_path / "out" / "index.html").read_text()
+    assert 'title="no finite error to reach the target with">–</td>' in index
+    assert "– s" not in index  # the old cell: "– s*"
+
+
 def test_report_files(report: Path) -> None:
     index = (report / "index.html").read_text()
     page = (report / "scene-toy.html").read_text()
