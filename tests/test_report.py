@@ -59,6 +59,10 @@ def test_fit_slope_above_floor_needs_three_budgets_spanning_four_times() -> None
     # three budgets, but spanning less than 4x
     close = fit_slope_above_floor([1.0, 1.5, 2.0], [0.45, 0.32, 0.25], floor)
     assert math.isnan(close.slope) and close.n == 3
+    # budgets 1, 2 and 4 span 4x even when the first snapshot came late (3.995x in time:
+    # lt on cbox-fog lost its slope to that)
+    late = fit_slope_above_floor([1.0013, 2.0, 4.0], [0.45, 0.25, 0.15], floor, budgets=[1, 2, 4])
+    assert math.isfinite(late.slope) and late.n == 3
 
 
 def test_time_to_error() -> None:

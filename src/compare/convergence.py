@@ -64,7 +64,7 @@ def fit_slope_above_floor(
     """Slope of (error - floor) vs time, ``floor`` being an additive error that does not fall
     with render time (the reference's own error). Uses the points with error >= margin x floor;
     NaN (with n = points kept) when the floor is unknown or the points kept come from fewer
-    than MIN_FIT_POINTS budgets or span less than MIN_FIT_SPAN in time. ``budgets`` (one per
+    than MIN_FIT_POINTS budgets or span less than MIN_FIT_SPAN in budget. ``budgets`` (one per
     point; default: the times) tells points of one budget apart."""
     e = np.asarray(errors, dtype=np.float64)
     t = np.asarray(times, dtype=np.float64)
@@ -72,8 +72,10 @@ def fit_slope_above_floor(
     if not (math.isfinite(floor) and floor >= 0):
         return SlopeFit(math.nan, math.nan, math.nan, 0)
     keep = (e >= margin * floor) & (t > 0) & np.isfinite(e)
-    kept = t[keep]
-    if np.unique(b[keep]).size < MIN_FIT_POINTS or kept.max(initial=0) < MIN_FIT_SPAN * kept.min(
+    # The span is the budgets': a first snapshot a little late (1.003 s) must not drop budgets
+    # of exactly 1-4 s.
+    kept = b[keep]
+    if np.unique(kept).size < MIN_FIT_POINTS or kept.max(initial=0) < MIN_FIT_SPAN * kept.min(
         initial=math.inf
     ):
         return SlopeFit(math.nan, math.nan, math.nan, int(keep.sum()))

@@ -21,7 +21,7 @@ import yaml
 
 from .. import tables as T
 from ..imageio import read_exr, read_json
-from ..metrics import relmse_map
+from ..metrics import EPS, relmse_map
 from . import images as I  # noqa: N812
 from .plots import convergence_svg, method_colours
 
@@ -98,6 +98,22 @@ def _legend(metric: str, factor: float) -> str:
         f'<span class="late">at … s</span>: the snapshot came more than {T.OVERSHOOT:g}x after '
         "its budget, at that mean render time (a method whose iterations are long cannot stop "
         "sooner), so the cell is not an equal-time comparison.</p>"
+    )
+
+
+def _reading_note() -> str:
+    """What the errors are, in the page itself: a reader assumes the usual meanings."""
+    return (
+        '<p class="note"><b>Reading the errors.</b> x is a method\'s image, r the reference, '
+        "both linear RGB; means run over pixels and channels. relMSE = mean((x − r)² / "
+        f"(r² + {EPS:g})): where the reference is darker than about {math.sqrt(EPS):g} it "
+        f"weighs squared errors by 1/{EPS:g}, like MSE scaled up, not relative to the pixel. "
+        "MSE = mean((x − r)²). 1 − SSIM compares the images tonemapped to display sRGB "
+        "(exposure 0, clipped to [0, 1]); FLIP is HDR-FLIP over its own range of exposures. "
+        "Every error is measured against the reference, so "
+        "it includes the reference's own error (estimated from its two halves, Reference "
+        "quality below; an estimate, so read it as a lower bound). Slopes "
+        "marked <i>reference error removed</i> subtract it.</p>"
     )
 
 
@@ -374,6 +390,7 @@ def build_index(spec: dict[str, Any]) -> None:
     if variants:
         items = "; ".join(f"<b>{e(label)}</b>: {e(what)}" for label, what in variants.items())
         body.append(f'<p class="note">Variants (a method with settings of its own): {items}.</p>')
+    body.append(_reading_note())
 
     # winners
     best = T.best_methods(summary, metric)

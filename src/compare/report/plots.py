@@ -12,11 +12,13 @@ import pandas as pd
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.ticker import NullLocator  # noqa: E402
 
 from ..convergence import fit_slope  # noqa: E402
 from ..tables import METRIC_LABELS, render_time  # noqa: E402
 
 plt.rcParams["svg.fonttype"] = "none"  # keep text as text: smaller, searchable
+MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "h")
 
 
 def method_colours(methods: list[str]) -> dict[str, str]:
@@ -40,7 +42,10 @@ def convergence_svg(
     runs = runs[np.isfinite(values)]
     if not (runs[metric] > 0).any():
         return _no_data_svg(title, "no finite positive values to plot on a log scale")
-    fig, ax = plt.subplots(figsize=(6.4, 4.2), dpi=100)
+    fig, ax = plt.subplots(figsize=(7.6, 4.2), dpi=100)
+    # A marker per method as well as a colour: curves that coincide (pm and sppm) stay apart.
+    order = list(colours) + sorted(set(runs["method"]) - set(colours))
+    markers = {m: MARKERS[i % len(MARKERS)] for i, m in enumerate(order)}
     for method, d in runs.groupby("method", sort=True):
         t_all = render_time(d)
         d = d.assign(t=t_all)
@@ -52,7 +57,8 @@ def convergence_svg(
         fit = fit_slope(d["t"].to_numpy(), d[metric].to_numpy())
         slope = f"{fit.slope:+.2f}" if math.isfinite(fit.slope) else "n/a"
         c = colours.get(method, None)
-        ax.plot(t, mean, "o-", color=c, lw=1.6, ms=3.5, label=f"{method} (slope {slope})")
+        ax.plot(t, mean, "-", marker=markers[method], color=c, lw=1.6, ms=5, mfc="none",
+                mew=1.3, label=f"{method} (slope {slope})")  # fmt: skip
         if d["seed"].nunique() > 1:
             ax.fill_between(t, lo, hi, color=c, alpha=0.18, lw=0)
     if ref_error is not None and math.isfinite(ref_error) and ref_error > 0:
@@ -63,13 +69,15 @@ def convergence_svg(
     ax.set_ylabel(METRIC_LABELS.get(metric, metric))
     ax.set_title(title, fontsize=11)
     ax.grid(True, which="both", alpha=0.25)
-    ax.legend(fontsize=8, loc="best", framealpha=0.8)
+    # Beside the axes, where it cannot cover a curve.
+    ax.legend(
+        fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1), borderaxespad=0, frameon=False
+    )
     budgets = np.sort(runs["budget"].unique())
     if budgets.size:
         ax.set_xticks(budgets)
         ax.set_xticklabels([f"{b:g}" for b in budgets])
-        ax.minorticks_off()
-        ax.set_yscale("log")
+        ax.xaxis.set_minor_locator(NullLocator())
     fig.tight_layout()
     buf = io.StringIO()
     fig.savefig(buf, format="svg")
