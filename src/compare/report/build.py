@@ -444,7 +444,10 @@ def build_index(spec: dict[str, Any]) -> None:
             "the study). Seconds of render time, interpolated log-log between budgets; "
             "* = extrapolated from the fitted slope (at most 4x outside the measured times; "
             "beyond that ≤ first budget or ≥ last budget, as measured). "
-            "Speed-up = baseline time / method time.</p>"
+            "Speed-up = baseline time / method time. A method marked ≤ had beaten the target "
+            "at its first snapshot already, and its true time may be far lower: such a bound "
+            "does not rank against another method's time; compare their errors at the first "
+            "budget in the overview instead.</p>"
         )
         rows = ['<table class="data"><thead><tr><th>scene</th>']
         rows += [f"<th>{e(m)}</th>" for m in methods]
