@@ -81,8 +81,8 @@ def _slopes_note() -> str:
         '<p class="note">A noisy reference adds its own error to every measurement, which '
         'flattens the curves of methods that get close to it. "Reference error removed": the '
         "fit of (error − reference error) over the runs with at least twice the reference "
-        "error; blank unless those runs come from three budgets or more spanning at least 4x "
-        "in time. The plots' legends give the slopes as measured.</p>"
+        "error; blank unless those runs come from three budgets or more, the largest at least "
+        "4x the smallest. The plots' legends give the slopes as measured.</p>"
     )
 
 
