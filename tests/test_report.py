@@ -322,6 +322,9 @@ def test_report_files(report: Path) -> None:
     assert "Reference error removed" in index and "ref. error removed" in page
     assert 'id="viewer"' in page and 'src="data/toy.js"' in page
     assert "A toy scene for the report test." in page and "bdpt (not in this study)" in page
+    # pt's late first snapshot is marked under its image too, and nothing else is
+    grid = page[page.index("Equal-time images") :]
+    assert grid.count('class="late"') == 1 and "pt · relMSE" in grid and ">at 1.3 s<" in grid
     assert "Mitsuba 3.9.1 volpathmis, two independent halves of 4 spp each" in page
     assert re.search(r"<b>Won</b> at [^:]+: (pt \(as expected|lt \(not among the expected)", page)
     winners = index[index.index("Best method per scene") : index.index("Overview:")]
