@@ -322,6 +322,9 @@ def test_report_files(report: Path) -> None:
     assert "Reference error removed" in index and "ref. error removed" in page
     assert 'id="viewer"' in page and 'src="data/toy.js"' in page
     assert "A toy scene for the report test." in page and "bdpt (not in this study)" in page
+    # tables name their columns as a reader would: no identifiers
+    assert "<th>speed-up vs pt</th>" in page and "<th>time [s]</th>" in page
+    assert "speedup_vs" not in page and "<th>one_minus_ssim</th>" not in page
     # pt's late first snapshot is marked under its image too, and nothing else is
     grid = page[page.index("Equal-time images") :]
     assert grid.count('class="late"') == 1 and "pt · relMSE" in grid and ">at 1.3 s<" in grid

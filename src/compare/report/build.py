@@ -68,6 +68,18 @@ def _metric_label(m: str) -> str:
     return T.METRIC_LABELS.get(m, m)
 
 
+def _readable_column(name: str) -> str:
+    """A table column as a reader names it: metric labels, units, no identifiers."""
+    if name.startswith("speedup_vs_"):
+        return f"speed-up vs {name[len('speedup_vs_') :]}"
+    if name == "speedup_bound":
+        return "speed-up bound"
+    if name == "seconds":
+        return "time [s]"
+    metric, sep, rest = name.partition(" (")
+    return _metric_label(metric) + (sep + rest if sep else "")
+
+
 def _ref_error_for(metric: str, ref: dict[str, Any]) -> float | None:
     key = T.REFERENCE_ERROR.get(metric)
     return ref.get(key) if key else None
@@ -254,7 +266,7 @@ def build_scene_page(spec: dict[str, Any]) -> None:
                     cs.insert(list(cs.columns).index(m) + 1, f"{m} (ref. error removed)", fixed)
             body.append("<h3>Fitted slopes (d log error / d log time)</h3>")
             body.append(_slopes_note())
-            body.append(T.frame_html(cs.reset_index(), 3))
+            body.append(T.frame_html(cs.reset_index().rename(columns=_readable_column), 3))
         if tte is not None and not tte.empty:
             ts = tte[tte.scene == scene].drop(columns=["scene"])
             body.append("<h3>Time to reach a target error</h3>")
@@ -266,7 +278,8 @@ def build_scene_page(spec: dict[str, Any]) -> None:
                     "4x outside them); bound = only known to be reached by the first budget (<=) "
                     "or not by the last (>=).</p>"
                 )
-            body.append(T.frame_html(ts.drop(columns=["metric", "target", "target_from"]), 3))
+            shown = ts.drop(columns=["metric", "target", "target_from"])
+            body.append(T.frame_html(shown.rename(columns=_readable_column), 3))
 
     # interactive viewer
     vmax = int(spec.get("viewer_max_size", 512))
