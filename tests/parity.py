@@ -207,6 +207,14 @@ def agreement(a: Estimate, b: Estimate, alpha: float = ALPHA) -> Agreement:
     return Agreement(chi2, chi2_dof, p_value, max_abs_z, z_limit, worst, deviation, alpha)
 
 
+def same_image(a: Estimate, b: Estimate, alpha: float, block: int = 3) -> tuple[bool, str]:
+    """Two renders of one image: block means and the image mean agree (chi-square and largest
+    |z| at ``alpha``), and why, for the assertion message."""
+    blocks = agreement(a.blocks(block), b.blocks(block), alpha=alpha)
+    mean = agreement(a.image_mean(), b.image_mean(), alpha=alpha)
+    return blocks.passes and mean.passes, f"blocks {blocks}; mean {mean}"
+
+
 def mean_agrees(a: Estimate, b: Estimate) -> tuple[bool, str]:
     """The image means agree: largest |z| over the channels and their chi-square."""
     result = agreement(a.image_mean(), b.image_mean(), ALPHA)

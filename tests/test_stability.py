@@ -35,6 +35,7 @@ import pytest
 import yaml
 from scipy import stats as sps
 
+import parity
 import stats
 from conftest import SCENES, load_small
 from parity import Estimate, agreement, mitsuba, ours
@@ -438,10 +439,7 @@ def scaled_renders(request) -> tuple[str, Estimate, dict[float, Estimate]]:
 
 def same_image(a: Estimate, b: Estimate) -> tuple[bool, str]:
     """3x3-pixel blocks and the image mean agree (chi-square and largest |z|, at LEVEL)."""
-    blocks = agreement(a.blocks(3), b.blocks(3), alpha=LEVEL)
-    mean = agreement(a.image_mean(), b.image_mean(), alpha=LEVEL)
-    agree = blocks.passes and mean.passes
-    return agree, f"blocks {blocks}; mean {mean}"
+    return parity.same_image(a, b, LEVEL)
 
 
 def test_scale_invariance(scaled_renders):
@@ -488,7 +486,8 @@ ITERATIONS = {"pt": 512, "lt": 32, "pm": 128}
 
 
 def translated(scene, shift: float):
-    """The scene with everything moved by (shift, shift, shift)."""
+    """The scene's shapes and camera moved by (shift, shift, shift) (DENSE_BLOB's only light
+    is an area light, one of its shapes)."""
     move = np.full(3, shift)
     shapes = [dataclasses.replace(sh, vertices=sh.vertices + move) for sh in scene.shapes]
     camera = dataclasses.replace(
