@@ -193,15 +193,15 @@ def build_scene_page(spec: dict[str, Any]) -> None:
 
     # images at full size for the grid, downsampled for the viewer
     imgs: dict[str, dict[str, np.ndarray]] = {}
-    seconds: dict[str, dict[str, float]] = {}  # each snapshot's render time (its sidecar)
     for m in methods:
-        imgs[m], seconds[m] = {}, {}
+        imgs[m] = {}
         for b, path in zip(budgets, spec["snapshots"][m], strict=True):
             if Path(path).is_file():
                 imgs[m][b] = read_exr(path).astype(np.float64)
-                sidecar = Path(path).with_suffix(".json")
-                if sidecar.is_file():
-                    seconds[m][b] = float(read_json(sidecar).get("render_seconds", math.nan))
+    # render time of each image shown (the runs table has every snapshot's)
+    shown = tabs["runs"]
+    shown = shown[(shown.scene == scene) & (shown.seed == spec["seed"])]
+    seconds = shown.set_index(["method", "budget"])["render_seconds"]
     err = {m: {b: relmse_map(x, ref) for b, x in d.items()} for m, d in imgs.items()}
     lo, hi = I.error_range([x for d in err.values() for x in d.values()])
 
@@ -344,7 +344,7 @@ def build_scene_page(spec: dict[str, Any]) -> None:
                 continue
             rel = float(err[m][b].mean())
             uri = I.data_uri_png(I.tonemapped_png(x, ev))
-            t = seconds[m].get(b, math.nan)  # a late snapshot is not equal time: say so
+            t = float(seconds.get((m, float(b)), math.nan))  # late: not equal time, say so
             late = T.late_mark(t, float(b)) if T.overshoot(t, float(b)) else ""
             body.append(
                 f'<figure><img alt="{e(m)} at {e(b)} s" src="{uri}">'
