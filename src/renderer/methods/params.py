@@ -9,6 +9,7 @@ from typing import Any
 
 from ..errors import PgiError
 from ..ranges import INT32_MAX, integer_problem, number_problem
+from ..scene.model import Film
 
 # Memory one path of a batch may take, camera or light (its state, rays, shadow rays and
 # records; measured 200-430 bytes for camera paths): a rough, generous bound.
@@ -81,7 +82,9 @@ class MethodParams:
         if key in self.params and not used:
             raise PgiError(f"method {self.method}: {key} has no effect {why}")
 
-    def paths_fit_in_memory(self, key: str, paths: int, what: str = "paths") -> None:
+    def paths_fit_in_memory(
+        self, key: str, paths: int, what: str = "paths", or_lower: str = ""
+    ) -> None:
         """Refuse a batch of paths whose state would take over half the machine's memory:
         Linux grants such allocations and then kills the process, with no message."""
         total = physical_memory()
@@ -89,9 +92,13 @@ class MethodParams:
             raise PgiError(
                 f"method {self.method}: {key} gives batches of {paths:,} {what}, about "
                 f"{paths * PATH_BYTES / 2**30:.0f} GiB, more than half this machine's "
-                f"{total / 2**30:.0f} GiB: lower method.{key}"
-                + (" or the film's size" if what == "camera paths" else "")
+                f"{total / 2**30:.0f} GiB: lower method.{key}{or_lower}"
             )
+
+    def camera_paths_fit_in_memory(self, key: str, spp: int, film: Film) -> None:
+        """paths_fit_in_memory for a batch of `spp` camera paths per pixel of `film`."""
+        paths = spp * film.width * film.height
+        self.paths_fit_in_memory(key, paths, "camera paths", " or the film's size")
 
     def spp_per_iteration(self, key: str, default: int, spp_budget: int | None) -> int:
         """Samples per pixel of one iteration; with an spp budget it must divide it, so that

@@ -45,9 +45,7 @@ class PhotonMapping:
         photons = p.integer("photons", DEFAULT_PHOTONS, lo=1)
         spp = p.spp_per_iteration("spp_per_iteration", 1, spp_budget)
         p.paths_fit_in_memory("photons", photons, "photon paths")
-        p.paths_fit_in_memory(
-            "spp_per_iteration", spp * scene.film.width * scene.film.height, "camera paths"
-        )
+        p.camera_paths_fit_in_memory("spp_per_iteration", spp, scene.film)
         max_records = p.integer("max_records", DEFAULT_MAX_RECORDS, lo=1)
         scale = p.number("radius_scale", DEFAULT_RADIUS_SCALE, lo=MIN_RADIUS_FRACTION)
         self.native = build_native_scene(scene)

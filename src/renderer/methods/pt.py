@@ -43,7 +43,7 @@ class PathTracing:
         pixels = scene.film.width * scene.film.height
         p = MethodParams(self.id, params, self.parameters)
         spp_per_wave = p.spp_per_iteration("spp_per_wave", wave_spp(pixels, spp_budget), spp_budget)
-        p.paths_fit_in_memory("spp_per_wave", spp_per_wave * pixels, "camera paths")
+        p.camera_paths_fit_in_memory("spp_per_wave", spp_per_wave, scene.film)
         self.native = build_native_scene(scene)
         self.tracer = EmbreeTracer(self.native.triangles, threads)
         self.kernel = _core.PathTracer(
