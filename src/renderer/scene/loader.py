@@ -345,6 +345,10 @@ def _apply_override(doc: dict, text: str, origins: _Origins) -> None:
 # --------------------------------------------------------------------------- validation
 
 
+# The section that defines each kind of named reference.
+_SECTIONS = {"material": "materials", "medium": "media"}
+
+
 class _Validator:
     def __init__(self, origins: _Origins) -> None:
         self.o = origins
@@ -449,12 +453,12 @@ class _Validator:
         x = self.number(v, path, lo=0, hi=hi)
         return (x, x, x)
 
-    def name_ref(self, v: Any, path: KeyPath, table: dict, what: str, section: str) -> str:
+    def name_ref(self, v: Any, path: KeyPath, table: dict, what: str) -> str:
         name = self.string(v, path)
         if name not in table:
             known = ", ".join(sorted(table)) or "none defined"
             # An override that replaced the whole section is the likelier culprit.
-            _, _, note = self.o.locate((section,))
+            _, _, note = self.o.locate((_SECTIONS[what],))
             where = f" after {note.strip()[1:-1]}" if note else ""
             self.fail(path, f"unknown {what} {name!r} (defined{where}: {known})")
         return name
@@ -862,16 +866,12 @@ def _shape(val: _Validator, i: int, d: Any, materials: dict, media: dict) -> Sha
         val.fail(p, f"shape has zero surface area ({what})")
 
     def medium_ref(key: str) -> str | None:
-        return (
-            None
-            if d.get(key) is None
-            else val.name_ref(d[key], p + (key,), media, "medium", "media")
-        )
+        return None if d.get(key) is None else val.name_ref(d[key], p + (key,), media, "medium")
 
     return Shape(
         name=val.string(d.get("name", f"{kind}{i}"), p + ("name",)),
         vertices=v, faces=f,
-        material=val.name_ref(d["material"], p + ("material",), materials, "material", "materials"),
+        material=val.name_ref(d["material"], p + ("material",), materials, "material"),
         emission=emission, interior=medium_ref("interior"), exterior=medium_ref("exterior"),
     )  # fmt: skip
 
@@ -943,7 +943,7 @@ def load_scene(path: str | Path, overrides: Sequence[str] = ()) -> Scene:
 
     camera = _camera(val, doc["camera"])
     if camera.medium is not None:
-        val.name_ref(camera.medium, ("camera", "medium"), media, "medium", "media")
+        val.name_ref(camera.medium, ("camera", "medium"), media, "medium")
     film_doc = val.mapping(doc["film"], ("film",), required=("width", "height"))
     film = Film(val.integer(film_doc["width"], ("film", "width"), 1, MAX_FILM_SIDE),
                 val.integer(film_doc["height"], ("film", "height"), 1, MAX_FILM_SIDE))  # fmt: skip
