@@ -300,6 +300,9 @@ def make_plan(
     scenes_dir = root / config.get("scenes_dir", "scenes")
     ref = dict(config.get("reference") or {})
     global_set = tuple(config.get("set") or ())
+    # Scenes and arguments are checked here only when `pgi` is this package's own: another
+    # command may read them its own way.
+    check_here = check_scenes and str(config.get("pgi", "auto")) == "auto"
     default_spp = int(ref.get("spp", 1024))
 
     scenes: dict[str, SceneSpec] = {}
@@ -321,7 +324,7 @@ def make_plan(
             set=global_set + tuple(entry.get("set") or ()),
             reference_spp=int(entry.get("reference_spp", default_spp)),
         )
-        if check_scenes and str(config.get("pgi", "auto")) == "auto":
+        if check_here:
             check_scene(scenes[name])
 
     wanted = config["methods"]
@@ -332,7 +335,7 @@ def make_plan(
         avail, planned = [], []
     variants = make_variants(config, avail, planned, check=check_methods or wanted == "all")
     labels = [v for v in variants if v not in exclude]
-    if check_scenes and str(config.get("pgi", "auto")) == "auto":
+    if check_here:
         for label in labels:
             scene_keys = tuple(kv for kv in variants[label].set if not kv.startswith("method."))
             method_keys = [kv.split("=", 1)[0][len("method.") :] for kv in variants[label].set
@@ -369,7 +372,7 @@ def make_plan(
     method_args = {
         k: tuple(str(a) for a in v) for k, v in (config.get("method_args") or {}).items()
     }
-    if check_scenes and str(config.get("pgi", "auto")) == "auto":
+    if check_here:
         for method, args in method_args.items():
             check_method_args(method, args)
         for spec in scenes.values():
