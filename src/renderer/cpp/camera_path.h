@@ -110,7 +110,7 @@ public:
         r.dir = ls.wi;
         r.to_infinity = !std::isfinite(ls.dist);
         r.target = r.to_infinity ? Vec3() : ls.point;
-        r.target_eps = r.to_infinity ? 0 : 2 * scene_.offset_length(ls.point);
+        r.target_eps = r.to_infinity ? 0 : scene_.light_clearance(ls.point);
         r.restart_at(origin);
         r.medium = medium;
         r.contribution = p.throughput * f * ls.value * w;

@@ -72,12 +72,13 @@ size_t LightPathTracer::begin_iteration(int64_t iteration, const RayBuffers &out
     return k;
 }
 
-// A path from a point or spot light starts an offset out along its direction, as
+// A path from a point or spot light starts its clearance out along its direction, as
 // pt's shadow rays stop as far short of the light: a light placed on a surface (a lamp on
 // the ceiling) then lights the room instead of hitting its own wall at distance 0. The
-// medium the light sits in fills that offset: it is the path's lead.
-static RayStart off_the_light(const Vec3 &position, const Vec3 &dir, double epsilon) {
-    return {position + dir * epsilon, epsilon};
+// medium the light sits in fills that gap: it is the path's lead.
+static RayStart off_the_light(const Scene &scene, const Vec3 &position, const Vec3 &dir) {
+    const double clearance = scene.light_clearance(position);
+    return {position + dir * clearance, clearance};
 }
 
 // Emission: a light by power, then a point and a direction on it (Jensen 2001, ch. 5).
@@ -123,7 +124,7 @@ void LightPathTracer::emit(LightPathState &p, size_t slot, int64_t path) {
         }
         case LightType::Point: {
             p.dir = square_to_uniform_sphere(u4, u5);
-            start_path_at(p, off_the_light(l.position, p.dir, 2 * scene.offset_length(l.position)));
+            start_path_at(p, off_the_light(scene, l.position, p.dir));
             p.power = l.intensity * (4 * kPi / pick);
             p.medium = emission_medium_light_[li];
             break;
@@ -132,7 +133,7 @@ void LightPathTracer::emit(LightPathState &p, size_t slot, int64_t path) {
             // Uniform in the cutoff cone, weighted by the falloff.
             double cos_theta = 1 - u4 * (1 - l.cos_cutoff);
             p.dir = direction_around(l.direction, cos_theta, u5);
-            start_path_at(p, off_the_light(l.position, p.dir, 2 * scene.offset_length(l.position)));
+            start_path_at(p, off_the_light(scene, l.position, p.dir));
             double falloff = l.spot_falloff(p.dir);
             p.power = l.intensity * (falloff * 2 * kPi * (1 - l.cos_cutoff) / pick);
             p.medium = emission_medium_light_[li];

@@ -117,6 +117,9 @@ public:
     double offset_length(const Vec3 &p) const {
         return ray_epsilon * (1 + max_abs_component(p) / scene_radius);
     }
+    // How far from a light at p connections stop and light paths start: two offsets, so that
+    // a light on a surface (a lamp set into the ceiling) is reached and leaves it alike.
+    double light_clearance(const Vec3 &p) const { return 2 * offset_length(p); }
 
     LightSample sample_light(const Vec3 &p, Sampler &rng) const;
     // Solid-angle pdf that sample_light would pick direction from `from` to the
