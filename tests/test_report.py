@@ -165,6 +165,41 @@ def test_tables_best_flags_and_speedup(tmp_path: Path) -> None:
     assert np.isnan(conv.loc[("pt", "flip"), "slope_ref_removed"])  # no reference error known
 
 
+def test_slope_ranges_come_from_each_seed_alone(tmp_path: Path) -> None:
+    """Seed 1's error falls as 1/t, seed 2's as 1/sqrt(t): the table keeps the fit over all
+    runs and gives the per-seed slopes as its range; the report prints both."""
+    runs = _runs()
+    second = runs.seed == 2
+    runs.loc[second, "relmse"] = runs.loc[second, "relmse"] * runs.loc[second, "budget"] ** 0.5
+    conv = T.write_tables(runs, tmp_path, metric="relmse", baseline="pt")["convergence"]
+    pt = conv.set_index(["method", "metric"]).loc[("pt", "relmse")]
+    assert pt["slope_seed_min"] == pytest.approx(-1.0) and pt["slope_seed_max"] == pytest.approx(
+        -0.5
+    )
+    assert -1.0 < pt["slope"] < -0.5
+    assert pt["slope_ref_removed_seed_min"] == pytest.approx(-1.0, abs=0.01)
+    assert pt["slope_ref_removed_seed_max"] == pytest.approx(-0.5, abs=0.01)
+    cell = T.slope_cells(conv[(conv.method == "pt") & (conv.metric == "relmse")]).iloc[0]
+    assert cell == f"{pt['slope']:.2f} [-1.00, -0.50]"
+    one_seed = T.write_tables(runs[~second], tmp_path, metric="relmse", baseline="pt")
+    lone = one_seed["convergence"].iloc[0]
+    assert np.isnan(lone["slope_seed_min"])  # a range needs two seeds
+    assert T.fmt_slope(lone["slope"], lone["slope_seed_min"], lone["slope_seed_max"]) == "-1.00"
+
+
+def test_tables_list_methods_in_the_study_order(tmp_path: Path) -> None:
+    """The config lists pt before lt: every table and the overview keep that order (they
+    used to sort alphabetically while the report's other sections followed the config)."""
+    tabs = T.write_tables(_runs(), tmp_path, metric="relmse", baseline="pt", methods=["pt", "lt"])
+    for name in ("runs", "summary", "convergence", "time_to_error", "stats"):
+        assert list(tabs[name].method.unique()) == ["pt", "lt"], name
+        assert list(pd.read_csv(tmp_path / f"{name}.csv").method.unique()) == ["pt", "lt"]
+    html = T.overview_html(tabs["summary"], "relmse")
+    assert html.index(">pt<") < html.index(">lt<")
+    plain = T.write_tables(_runs(), tmp_path, metric="relmse", baseline="pt")
+    assert list(plain["summary"].method.unique()) == ["lt", "pt"]  # none given: alphabetical
+
+
 def test_baseline_against_itself_is_exactly_one_whatever_its_bound(tmp_path: Path) -> None:
     """pt identical to the reference (target 0, met from its first budget on): its own
     time is a bound ("<="), and its speed-up against itself is 1 with no bound, not "?"."""
@@ -363,9 +398,29 @@ def test_report_in_headless_chromium(report: Path, tmp_path: Path) -> None:
         assert not r.errors, r.errors
         assert not r.broken_images, r.broken_images
         assert r.screenshot_std > 2.0  # not blank
+        narrow = check_page(report / page, width=800)
+        assert narrow.overflow_px == 0, narrow.overflowing  # no page-wide scrolling
     r = check_page(report / "scene-toy.html")
     assert r.viewer and r.viewer_key_ok  # key "0" switched the viewer to the reference
     assert r.images >= 9  # colour bar, reference, 2 methods x 2 budgets x (image + error)
+
+
+@needs_chromium
+def test_wide_tables_scroll_on_their_own_in_a_narrow_window(tmp_path: Path) -> None:
+    """A table of 16 budgets in an 800-pixel window: the report's tables scroll inside their
+    own box and the page stays as wide as the window. Control: the same table without the
+    report's table class widens the whole page, and the check sees it."""
+    from compare.report.build import _page
+
+    wide = pd.DataFrame({f"{2**i} s": ["0.00123 ± 4.5e-05"] for i in range(16)})
+    table = T.frame_html(wide)
+    page = tmp_path / "wide.html"
+    page.write_text(_page("wide", table))
+    r = check_page(page, width=800)
+    assert r.ok and r.overflow_px == 0, r.overflowing
+    page.write_text(_page("wide", table.replace('class="data"', "")))
+    r = check_page(page, width=800)
+    assert not r.ok and r.overflow_px > 400 and "TABLE." in r.overflowing
 
 
 @needs_chromium

@@ -55,7 +55,14 @@ def _tables(a: argparse.Namespace) -> None:
             tsv = Path(a.results) / "benchmarks" / "render" / m["scene"] / m["method"]
             bench[key] = tsv / f"s{m['seed']}.tsv"
     runs = load_runs(a.metrics, bench)
-    tables = write_tables(runs, a.o, metric=a.metric, baseline=a.baseline)
+    tables = write_tables(
+        runs,
+        a.o,
+        metric=a.metric,
+        baseline=a.baseline,
+        scenes=a.scenes.split(",") if a.scenes else (),
+        methods=a.methods.split(",") if a.methods else (),
+    )
     print(tables["best"].to_string())
 
 
@@ -100,6 +107,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--results", required=True, help="results folder (for benchmark files)")
     p.add_argument("--metric", default="relmse")
     p.add_argument("--baseline", default="pt")
+    p.add_argument("--scenes", default="", help="comma-separated: the order of rows")
+    p.add_argument("--methods", default="", help="comma-separated: the order of rows")
     p.add_argument("-o", required=True, help="output folder")
     p.set_defaults(fn=_tables)
 

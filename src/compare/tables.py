@@ -10,7 +10,9 @@ Tables (all written by :func:`write_tables` into one folder):
                          cells whose reference is not good enough flagged
 - ``convergence.csv``    fitted log-log slope of error vs render time per scene x method x metric,
                          and for MSE and relMSE the slope of the error minus the reference's own
-                         error (``slope_ref_removed``, over points at >= 2x that error)
+                         error (``slope_ref_removed``, over points at >= 2x that error); for
+                         each, the range of the slopes fitted to each seed alone
+                         (``*_seed_min``, ``*_seed_max``)
 - ``time_to_error.csv``  time each method needs to reach a target error, and its speed-up vs the
                          baseline method (target: the baseline's mean error at its largest
                          budget, else the median final error of all methods); extrapolations
@@ -30,7 +32,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from .convergence import bounded, fit_slope, fit_slope_above_floor, time_to_error
+from .convergence import SlopeFit, bounded, fit_slope, fit_slope_above_floor, time_to_error
 from .metrics import METRICS
 
 KEYS = ["scene", "method", "budget"]
@@ -75,6 +77,24 @@ def load_runs(metric_csvs: Iterable[str | Path], benchmarks: dict | None = None)
             df.loc[sel, "max_rss_mb"] = pd.to_numeric(b["max_rss"], errors="coerce").iloc[-1]
     df["ref_ok"] = df["ref_ok"].astype(bool)
     return df.sort_values(["scene", "method", "seed", "budget"]).reset_index(drop=True)
+
+
+def study_order(
+    df: pd.DataFrame, scenes: Sequence[str] = (), methods: Sequence[str] = ()
+) -> pd.DataFrame:
+    """df with its rows in the study's order: scenes, then methods, as the config lists them
+    (any not listed after those, alphabetically), other columns' order kept. Every table and
+    every section of the report then lists methods in one order."""
+    if df.empty or "scene" not in df or "method" not in df:
+        return df
+
+    def rank(column: pd.Series, order: Sequence[str]) -> pd.Series:
+        position = {name: i for i, name in enumerate(order)}
+        rest = {name: len(order) + i for i, name in enumerate(sorted(set(column) - set(order)))}
+        return column.map(position | rest)
+
+    keys = pd.DataFrame({"s": rank(df["scene"], scenes), "m": rank(df["method"], methods)})
+    return df.loc[keys.sort_values(["s", "m"], kind="stable").index].reset_index(drop=True)
 
 
 def summarize(runs: pd.DataFrame) -> pd.DataFrame:
@@ -153,24 +173,43 @@ def best_methods(summary: pd.DataFrame, metric: str) -> pd.DataFrame:
     return best
 
 
+def _slope_fits(
+    t: pd.Series, d: pd.DataFrame, metric: str, floor: float | None
+) -> tuple[SlopeFit, float, float]:
+    """(fit over all of d's runs, min and max of the slopes over each seed's runs alone);
+    with a floor, of the error less the floor (fit_slope_above_floor). The range is NaN
+    unless two seeds or more give a slope."""
+
+    def fit(rows: pd.Index) -> SlopeFit:
+        times, errors = t[rows].to_numpy(), d.loc[rows, metric].to_numpy()
+        if floor is None:
+            return fit_slope(times, errors)
+        budgets = d.loc[rows, "budget"].to_numpy()
+        return fit_slope_above_floor(times, errors, floor, budgets=budgets)
+
+    seeds = d.groupby("seed").groups.values() if "seed" in d else []
+    per_seed = [f.slope for f in map(fit, seeds) if math.isfinite(f.slope)]
+    lo, hi = (min(per_seed), max(per_seed)) if len(per_seed) >= 2 else (math.nan, math.nan)
+    return fit(d.index), lo, hi
+
+
 def convergence_table(runs: pd.DataFrame, metrics: Sequence[str] = METRICS) -> pd.DataFrame:
+    """One row per scene x method x metric: the slope fitted over all runs, and the range of
+    the slopes fitted to each seed's runs alone. The seeds' curves are independent, so their
+    spread shows how much a slope is worth; the points of one curve are not (each snapshot
+    continues the run before it), so a regression's own standard error would understate it."""
     rows = []
     for (scene, method), d in runs.groupby(["scene", "method"], sort=True):
+        t = render_time(d)
         for m in metrics:
             if m not in d:
                 continue
-            t = render_time(d)
-            f = fit_slope(t.to_numpy(), d[m].to_numpy())
+            f, lo, hi = _slope_fits(t, d, m, None)
             floor = REFERENCE_ERROR.get(m)
-            g = (
-                fit_slope_above_floor(
-                    t.to_numpy(),
-                    d[m].to_numpy(),
-                    float(d[floor].median()),
-                    budgets=d["budget"].to_numpy(),
-                )
+            g, g_lo, g_hi = (
+                _slope_fits(t, d, m, float(d[floor].median()))
                 if floor in d
-                else None
+                else (None, np.nan, np.nan)
             )
             rows.append(
                 {
@@ -178,11 +217,15 @@ def convergence_table(runs: pd.DataFrame, metrics: Sequence[str] = METRICS) -> p
                     "method": method,
                     "metric": m,
                     "slope": f.slope,
+                    "slope_seed_min": lo,
+                    "slope_seed_max": hi,
                     "intercept_log10": f.intercept,
                     "r2": f.r2,
                     "points": f.n,
                     # The same fit on error minus the reference's own error (see convergence.py).
                     "slope_ref_removed": g.slope if g else np.nan,
+                    "slope_ref_removed_seed_min": g_lo,
+                    "slope_ref_removed_seed_max": g_hi,
                     "points_ref_removed": g.n if g else 0,
                 }
             )
@@ -282,6 +325,27 @@ def fmt_pm(mean: float, std: float) -> str:
     return f"{fmt(mean)} ± {fmt(std, 2)}"
 
 
+def fmt_slope(slope: float, lo: float, hi: float) -> str:
+    """A fitted slope and, when known, the range of the per-seed slopes: "-0.98 [-1.02, -0.95]"."""
+    if not math.isfinite(float(slope)):
+        return "–"
+    if not (math.isfinite(float(lo)) and math.isfinite(float(hi))):
+        return f"{slope:.2f}"
+    return f"{slope:.2f} [{lo:.2f}, {hi:.2f}]"
+
+
+def slope_cells(conv: pd.DataFrame, column: str = "slope") -> pd.Series:
+    """fmt_slope of each row of a convergence table, for ``slope`` or ``slope_ref_removed``."""
+    return pd.Series(
+        [
+            fmt_slope(r[column], r[f"{column}_seed_min"], r[f"{column}_seed_max"])
+            for _, r in conv.iterrows()
+        ],
+        index=conv.index,
+        dtype=object,
+    )
+
+
 def overview_cells(summary: pd.DataFrame, metric: str) -> list[dict]:
     """One dict per scene x method: cells per budget with text, best and flag marks."""
     best = best_methods(summary, metric)
@@ -290,7 +354,8 @@ def overview_cells(summary: pd.DataFrame, metric: str) -> list[dict]:
         (r.scene, r.budget, m) for r in best.itertuples() for m in r.tied_with.split(",") if m
     }
     out = []
-    for (scene, method), d in summary.groupby(["scene", "method"], sort=True):
+    # In the summary's own order (study_order), not alphabetically.
+    for (scene, method), d in summary.groupby(["scene", "method"], sort=False):
         cells = {}
         for r in d.itertuples():
             cells[r.budget] = {
@@ -415,12 +480,20 @@ def frame_markdown(df: pd.DataFrame) -> str:
 
 
 def write_tables(
-    runs: pd.DataFrame, out_dir: str | Path, *, metric: str = "relmse", baseline: str = "pt"
+    runs: pd.DataFrame,
+    out_dir: str | Path,
+    *,
+    metric: str = "relmse",
+    baseline: str = "pt",
+    scenes: Sequence[str] = (),
+    methods: Sequence[str] = (),
 ) -> dict[str, pd.DataFrame]:
-    """Write every table into ``out_dir``; return them by name."""
+    """Write every table into ``out_dir``, rows in the order of ``scenes`` and ``methods``
+    (study_order); return them by name."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    summary = summarize(runs)
+    runs = study_order(runs, scenes, methods)
+    summary = study_order(summarize(runs), scenes, methods)
     tables = {
         "runs": runs,
         "summary": summary,
@@ -429,6 +502,7 @@ def write_tables(
         "time_to_error": time_to_error_table(summary, metric, baseline),
         "stats": stats_table(runs),
     }
+    tables = {name: study_order(df, scenes, methods) for name, df in tables.items()}
     for name, df in tables.items():
         df.to_csv(out / f"{name}.csv", index=False)
     (out / "overview.md").write_text(overview_markdown(summary, metric))

@@ -41,10 +41,13 @@ rule tables:
         metric=PLAN.primary_metric,
         baseline=PLAN.baseline,
         results=R,
+        scenes=",".join(PLAN.scenes),
+        methods=",".join(PLAN.methods),
     log:
         f"{R}/logs/tables.log",
     benchmark:
         f"{R}/benchmarks/tables.tsv"
     shell:
         "{PY} -m compare.steps tables --results {params.results:q} --metric {params.metric}"
-        " --baseline {params.baseline} -o {params.out:q} {input.metrics:q} > {log:q} 2>&1"
+        " --baseline {params.baseline} --scenes {params.scenes:q} --methods {params.methods:q}"
+        " -o {params.out:q} {input.metrics:q} > {log:q} 2>&1"

@@ -3,7 +3,8 @@
 Uses ``--remote-debugging-pipe`` (JSON messages over file descriptors 3 and 4), so no
 websocket library is needed. Checks: the page loads from file:// without console errors or
 uncaught exceptions, every <img> decodes, the viewer (if any) is ready and responds to a
-number-key press, and a screenshot is not blank.
+number-key press, a screenshot is not blank, and nothing makes the page wider than the window
+(wide tables scroll on their own).
 
     python -m compare.report.browser_check reports/index.html reports/scene-cbox.html
 """
@@ -139,6 +140,8 @@ class PageCheck:
     viewer_key_ok: bool | None = None
     screenshot_std: float = 0.0
     screenshot: bytes = b""
+    overflow_px: int = 0  # how much wider than the window the page is
+    overflowing: list[str] = field(default_factory=list)  # the elements that make it so
 
     @property
     def ok(self) -> bool:
@@ -147,17 +150,24 @@ class PageCheck:
             and not self.broken_images
             and (self.viewer_key_ok is not False)
             and self.screenshot_std > 2.0
+            and self.overflow_px <= 0
         )
 
 
-def check_page(path: str | Path, exe: str | None = None, screenshot: str | Path | None = None):
-    """Load ``path`` in headless Chromium and run the checks; returns a :class:`PageCheck`."""
+def check_page(
+    path: str | Path,
+    exe: str | None = None,
+    screenshot: str | Path | None = None,
+    width: int = 1400,
+):
+    """Load ``path`` in headless Chromium, ``width`` pixels wide, and run the checks; returns a
+    :class:`PageCheck`."""
     exe = exe or find_chromium()
     if exe is None:
         raise FileNotFoundError("no chromium found")
     url = Path(path).resolve().as_uri()
     res = PageCheck(url)
-    cdp = CDP(exe)
+    cdp = CDP(exe, width=width)
     try:
         target = cdp.send("Target.createTarget", {"url": "about:blank"})["targetId"]
         sid = cdp.send("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
@@ -212,6 +222,18 @@ def check_page(path: str | Path, exe: str | None = None, screenshot: str | Path 
             )
             after = ev("document.getElementById('viewer').dataset.method")
             res.viewer_key_ok = bool(ready) and after == "reference" and before != after
+        res.overflow_px = int(
+            ev("document.documentElement.scrollWidth - document.documentElement.clientWidth") or 0
+        )
+        if res.overflow_px > 0:
+            res.overflowing = (
+                ev(
+                    "Array.from(document.body.querySelectorAll('*')).filter(x => "
+                    "x.getBoundingClientRect().right > document.documentElement.clientWidth)"
+                    ".slice(0, 5).map(x => x.tagName + '.' + x.className)"
+                )
+                or []
+            )
         shot = cdp.send("Page.captureScreenshot", {"format": "png"}, session=sid)
         res.screenshot = base64.b64decode(shot["data"])
         # drain pending events, then collect console errors and exceptions
@@ -265,6 +287,8 @@ def main(argv: list[str]) -> int:
             f"viewer={'yes' if r.viewer else 'no'} key={r.viewer_key_ok}, "
             f"screenshot std {r.screenshot_std:.1f}"
         )
+        if r.overflow_px > 0:
+            print(f"    {r.overflow_px} px wider than the window: {', '.join(r.overflowing)}")
         for err in r.errors + [f"broken image: {b}" for b in r.broken_images]:
             print("   ", err)
         bad += not r.ok

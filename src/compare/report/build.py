@@ -58,10 +58,15 @@ def _write(path: Path, text: str) -> None:
     tmp.replace(path)
 
 
-def _read_tables(folder: str | Path) -> dict[str, pd.DataFrame]:
+def _read_tables(folder: str | Path, spec: dict[str, Any]) -> dict[str, pd.DataFrame]:
+    """The tables, rows in the study's order of scenes and methods."""
     folder = Path(folder)
     names = ("runs", "summary", "convergence", "time_to_error", "stats", "best")
-    return {n: pd.read_csv(folder / f"{n}.csv") for n in names if (folder / f"{n}.csv").is_file()}
+    return {
+        n: T.study_order(pd.read_csv(folder / f"{n}.csv"), spec["scenes"], spec["methods"])
+        for n in names
+        if (folder / f"{n}.csv").is_file()
+    }
 
 
 def _metric_label(m: str) -> str:
@@ -94,7 +99,9 @@ def _slopes_note() -> str:
         'flattens the curves of methods that get close to it. "Reference error removed": the '
         "fit of (error − reference error) over the runs with at least twice the reference "
         "error; blank unless those runs come from three budgets or more, the largest at least "
-        "4x the smallest. The plots' legends give the slopes as measured.</p>"
+        "4x the smallest. The plots' legends give the slopes as measured. In brackets: the "
+        "smallest and largest slope fitted to one seed's runs alone (the seeds are "
+        "independent, the snapshots of one run are not), blank with fewer than two seeds.</p>"
     )
 
 
@@ -181,7 +188,7 @@ def _about_scene(
 def build_scene_page(spec: dict[str, Any]) -> None:
     scene = spec["scene"]
     out = Path(spec["reports"])
-    tabs = _read_tables(spec["tables"])
+    tabs = _read_tables(spec["tables"], spec)
     metric = spec["metric"]
     factor = float(spec["factor"])
     methods: list[str] = spec["methods"]
@@ -257,16 +264,21 @@ def build_scene_page(spec: dict[str, Any]) -> None:
         conv = tabs.get("convergence")
         tte = tabs.get("time_to_error")
         if conv is not None and not conv.empty:
-            sc = conv[conv.scene == scene]
-            cs = sc.pivot(index="method", columns="metric", values="slope")
+            sc = conv[conv.scene == scene].assign(cell=lambda c: T.slope_cells(c))
+            cs = sc.pivot(index="method", columns="metric", values="cell")
+            cs = cs.reindex(sc.method.unique())  # pivot sorts; keep the study's order
             cs = cs[[c for c in T.METRICS if c in cs.columns]]
             for m in T.REFERENCE_ERROR:
                 if m in cs.columns and "slope_ref_removed" in sc:
-                    fixed = sc[sc.metric == m].set_index("method")["slope_ref_removed"]
+                    ref_removed = sc[sc.metric == m]
+                    fixed = T.slope_cells(ref_removed, "slope_ref_removed")
+                    fixed.index = ref_removed["method"]
                     cs.insert(list(cs.columns).index(m) + 1, f"{m} (ref. error removed)", fixed)
             body.append("<h3>Fitted slopes (d log error / d log time)</h3>")
             body.append(_slopes_note())
-            body.append(T.frame_html(cs.reset_index().rename(columns=_readable_column), 3))
+            # One row per metric, one column per method: the bracketed ranges fit the width.
+            rows = cs.T.rename(index=_readable_column).rename_axis("metric").reset_index()
+            body.append(T.frame_html(rows, 3))
         if tte is not None and not tte.empty:
             ts = tte[tte.scene == scene].drop(columns=["scene"])
             body.append("<h3>Time to reach a target error</h3>")
@@ -385,7 +397,7 @@ def build_scene_page(spec: dict[str, Any]) -> None:
 
 def build_index(spec: dict[str, Any]) -> None:
     out = Path(spec["reports"])
-    tabs = _read_tables(spec["tables"])
+    tabs = _read_tables(spec["tables"], spec)
     metric = spec["metric"]
     factor = float(spec["factor"])
     scenes: list[str] = spec["scenes"]
@@ -499,12 +511,16 @@ def build_index(spec: dict[str, Any]) -> None:
         cm = conv[conv.metric == metric]
         body.append(f"<h2>Convergence slopes ({e(_metric_label(metric))} vs time, log-log)</h2>")
         columns = ["slope"]
+        body.append(_slopes_note())
         if metric in T.REFERENCE_ERROR and "slope_ref_removed" in cm:
-            body.append(_slopes_note())
             columns.append("slope_ref_removed")
         for col in columns:
-            c = cm.pivot(index="scene", columns="method", values=col)
-            c = c.reindex(columns=[m for m in methods if m in c.columns]).reset_index()
+            c = cm.assign(cell=T.slope_cells(cm, col)).pivot(
+                index="scene", columns="method", values="cell"
+            )
+            c = c.reindex(
+                index=cm.scene.unique(), columns=[m for m in methods if m in c.columns]
+            ).reset_index()
             if len(columns) > 1:
                 label = "As measured" if col == "slope" else "Reference error removed"
                 body.append(f"<h3>{label}</h3>")

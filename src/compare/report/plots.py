@@ -46,7 +46,7 @@ def convergence_svg(
     # A marker per method as well as a colour: curves that coincide (pm and sppm) stay apart.
     order = list(colours) + sorted(set(runs["method"]) - set(colours))
     markers = {m: MARKERS[i % len(MARKERS)] for i, m in enumerate(order)}
-    for method, d in runs.groupby("method", sort=True):
+    for method, d in runs.groupby("method", sort=False):  # the legend in the study's order
         t_all = render_time(d)
         d = d.assign(t=t_all)
         g = d.groupby("budget")
