@@ -90,6 +90,14 @@ def test_scene_path_forms(tmp_path, monkeypatch):
     assert load_scene("mine").name == "t"
     with pytest.raises(PgiError, match="not found"):
         load_scene("no-such-scene")
+    # A folder in the working directory named like a scene is used as given; the error
+    # says where the scene of that name is.
+    (tmp_path / "cbox").mkdir()
+    with pytest.raises(PgiError, match=r"^cbox: no scene.yaml in this folder \(a scene of that "):
+        load_scene("cbox")
+    (tmp_path / "other").mkdir()
+    with pytest.raises(PgiError, match=r"^other: no scene.yaml in this folder$"):
+        load_scene("other")
 
 
 def test_broken_yaml(tmp_path):

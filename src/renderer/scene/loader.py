@@ -84,12 +84,20 @@ def find_scene_file(path: str | Path) -> Path:
     p = Path(path)
     if p.is_file():
         return p
+    candidates = [Path.cwd() / "scenes" / p / SCENE_FILE, REPO_ROOT / "scenes" / p / SCENE_FILE]
+    bare_name = len(p.parts) == 1 and not p.suffix
     if p.is_dir():
         if (p / SCENE_FILE).is_file():
             return p / SCENE_FILE
-        raise PgiError(f"{p}: no {SCENE_FILE} in this folder")
-    candidates = [Path.cwd() / "scenes" / p / SCENE_FILE, REPO_ROOT / "scenes" / p / SCENE_FILE]
-    if len(p.parts) == 1 and not p.suffix:
+        # An existing path is used as given, so a folder named like a scene hides it: say so.
+        named = [c.parent for c in candidates if bare_name and c.is_file()]
+        hint = (
+            f" (a scene of that name is at {named[0]}: give that path, or run from another folder)"
+            if named
+            else ""
+        )
+        raise PgiError(f"{p}: no {SCENE_FILE} in this folder{hint}")
+    if bare_name:
         for c in candidates:
             if c.is_file():
                 return c
