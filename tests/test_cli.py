@@ -304,6 +304,36 @@ def test_compare_reports_metrics_as_json(tmp_path):
     assert r.returncode == 0 and json.loads(r.stdout)["one_minus_ssim"] is None, r.stdout
 
 
+def test_compare_against_two_references_estimates_their_own_error(tmp_path):
+    """Two independent references, each the truth plus noise of variance s^2: the comparison
+    is against their mean, whose MSE s^2/2 is estimated as a quarter of theirs to each
+    other. A test image no noisier than the references gets the note that the reference
+    limits the comparison; one far noisier does not."""
+    from renderer.imageio import write_exr
+
+    rng = np.random.default_rng(1)
+    truth = rng.uniform(0.5, 1.0, (64, 64, 3))
+    s = 0.02
+    for name in ("ref_a", "ref_b", "test_close"):
+        write_exr(tmp_path / f"{name}.exr", (truth + rng.normal(0, s, truth.shape)).astype("f4"))
+    write_exr(tmp_path / "test_far.exr", (truth + rng.normal(0, 20 * s, truth.shape)).astype("f4"))
+    refs = [str(tmp_path / "ref_a.exr"), str(tmp_path / "ref_b.exr")]
+    r = pgi("compare", str(tmp_path / "test_close.exr"), *refs, "--json")
+    assert r.returncode == 0, r.stderr
+    m = json.loads(r.stdout)
+    # 64x64x3 values: the estimate's relative spread is ~2 %
+    assert m["ref_mse"] == pytest.approx(s**2 / 2, rel=0.1)
+    assert m["mse"] == pytest.approx(s**2 * 1.5, rel=0.1)  # the test's s^2 plus the mean's
+    assert "limits this comparison" in r.stderr
+    r = pgi("compare", str(tmp_path / "test_far.exr"), *refs)
+    assert r.returncode == 0 and "ref_relmse" in r.stdout and r.stderr == "", r.stderr
+    r = pgi("compare", str(tmp_path / "test_far.exr"), refs[0])  # one reference: no estimate
+    assert r.returncode == 0 and "ref_relmse" not in r.stdout and r.stderr == ""
+    write_exr(tmp_path / "small.exr", truth[:8, :8].astype("f4"))
+    r = pgi("compare", str(tmp_path / "test_far.exr"), refs[0], str(tmp_path / "small.exr"))
+    assert r.returncode != 0 and "small.exr" in r.stderr and "Traceback" not in r.stderr
+
+
 def test_unwritable_outputs_are_refused_before_rendering(tmp_path):
     (tmp_path / "out" / "a.json").mkdir(parents=True)  # the sidecar's path is taken
     (tmp_path / "dir.exr").mkdir()

@@ -147,25 +147,38 @@ def cmd_reference(args: argparse.Namespace) -> int:
     return 0
 
 
+# A comparison is limited by its reference unless the reference's own relMSE is this many
+# times below the image's (the workflow's ref_quality_factor default).
+REFERENCE_QUALITY_FACTOR = 10.0
+
+
 def cmd_compare(args: argparse.Namespace) -> int:
-    from compare.metrics import compare_images
+    from compare.metrics import compare_images, reference_error
 
     from .imageio import read_exr_and_channels
 
-    for path in (args.test, args.reference):
+    paths = [args.test, args.reference] + ([args.second_reference] if args.second_reference else [])
+    for path in paths:
         if Path(path).suffix.lower() != ".exr":  # metrics are defined on linear HDR values
             raise PgiError(f"{path}: expected a linear .exr image")
-    (test, test_channels), (ref, ref_channels) = map(
-        read_exr_and_channels, (args.test, args.reference)
-    )
-    grey = {args.test: test_channels == 1, args.reference: ref_channels == 1}
+    read = [read_exr_and_channels(path) for path in paths]
+    grey = {path: channels == 1 for path, (_, channels) in zip(paths, read, strict=True)}
     if len(set(grey.values())) > 1:  # reading repeats a grey channel: refuse it here
         kinds = ", ".join(f"{p} is {'grey' if g else 'colour'}" for p, g in grey.items())
         raise PgiError(f"cannot compare a grey image with a colour one: {kinds}")
+    test, ref = read[0][0], read[1][0]
+    own: dict[str, float] = {}
+    if args.second_reference:  # two independent references: their mean, and its error
+        try:
+            own = reference_error(ref, read[2][0], names=(args.reference, args.second_reference))
+        except ValueError as e:
+            raise PgiError(f"{args.reference} vs {args.second_reference}: {e}") from None
+        ref = 0.5 * (ref + read[2][0])
     try:
         metrics = compare_images(test, ref)
     except ValueError as e:
         raise PgiError(f"{args.test} vs {args.reference}: {e}") from None
+    metrics |= own
     if args.json:  # undefined metrics (SSIM below 11x11 pixels) are null: NaN is not JSON
         defined = {
             k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in metrics.items()
@@ -174,6 +187,13 @@ def cmd_compare(args: argparse.Namespace) -> int:
     else:
         for key, value in metrics.items():
             print(f"{key:>16}  {value:.6g}")
+    if own and not metrics["relmse"] > REFERENCE_QUALITY_FACTOR * own["ref_relmse"]:
+        print(
+            f"note: the references' mean has relMSE {own['ref_relmse']:.3g} of its own, not "
+            f"{REFERENCE_QUALITY_FACTOR:g}x below this image's {metrics['relmse']:.3g}: it "
+            "limits this comparison (every metric includes its error)",
+            file=sys.stderr,
+        )
     return 0
 
 
@@ -271,6 +291,13 @@ def build_parser() -> argparse.ArgumentParser:
     c = sub.add_parser("compare", help="error metrics of an image against a reference")
     c.add_argument("test", help="rendered .exr")
     c.add_argument("reference", help="reference .exr")
+    c.add_argument(
+        "second_reference",
+        nargs="?",
+        help="a second, independent reference .exr (another --seed): the comparison is "
+        "against their mean, and its own error is estimated from their difference (ref_relmse, "
+        "ref_mse; a quarter of halves_relmse, halves_mse)",
+    )
     c.add_argument("--json", action="store_true", help="print JSON")
     c.set_defaults(func=cmd_compare)
 
