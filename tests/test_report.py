@@ -196,6 +196,11 @@ def test_tables_list_methods_in_the_study_order(tmp_path: Path) -> None:
         assert list(pd.read_csv(tmp_path / f"{name}.csv").method.unique()) == ["pt", "lt"]
     html = T.overview_html(tabs["summary"], "relmse")
     assert html.index(">pt<") < html.index(">lt<")
+    runs = _runs()
+    runs.loc[(runs.method == "lt") & (runs.budget == 1.0), "relmse"] = 0.01  # lt wins at 1 s
+    best = T.write_tables(runs, tmp_path, metric="relmse", baseline="pt", methods=["pt", "lt"])
+    assert list(best["best"].budget) == [1.0, 2.0, 4.0]  # the winners by budget, not method
+    assert list(best["best"].method) == ["lt", "pt", "pt"]
     plain = T.write_tables(_runs(), tmp_path, metric="relmse", baseline="pt")
     assert list(plain["summary"].method.unique()) == ["lt", "pt"]  # none given: alphabetical
 

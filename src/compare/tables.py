@@ -80,12 +80,13 @@ def load_runs(metric_csvs: Iterable[str | Path], benchmarks: dict | None = None)
 
 
 def study_order(
-    df: pd.DataFrame, scenes: Sequence[str] = (), methods: Sequence[str] = ()
+    df: pd.DataFrame, scenes: Sequence[str] = (), methods: Sequence[str] | None = ()
 ) -> pd.DataFrame:
     """df with its rows in the study's order: scenes, then methods, as the config lists them
     (any not listed after those, alphabetically), other columns' order kept. Every table and
-    every section of the report then lists methods in one order."""
-    if df.empty or "scene" not in df or "method" not in df:
+    every section of the report then lists methods in one order. ``methods=None``: scenes,
+    then budgets (a table with one method per scene and budget)."""
+    if df.empty or "scene" not in df or ("method" not in df and methods is not None):
         return df
 
     def rank(column: pd.Series, order: Sequence[str]) -> pd.Series:
@@ -93,7 +94,8 @@ def study_order(
         rest = {name: len(order) + i for i, name in enumerate(sorted(set(column) - set(order)))}
         return column.map(position | rest)
 
-    keys = pd.DataFrame({"s": rank(df["scene"], scenes), "m": rank(df["method"], methods)})
+    second = df["budget"] if methods is None else rank(df["method"], methods)
+    keys = pd.DataFrame({"s": rank(df["scene"], scenes), "m": second})
     return df.loc[keys.sort_values(["s", "m"], kind="stable").index].reset_index(drop=True)
 
 
@@ -502,7 +504,10 @@ def write_tables(
         "time_to_error": time_to_error_table(summary, metric, baseline),
         "stats": stats_table(runs),
     }
-    tables = {name: study_order(df, scenes, methods) for name, df in tables.items()}
+    tables = {
+        name: study_order(df, scenes, None if name == "best" else methods)
+        for name, df in tables.items()
+    }
     for name, df in tables.items():
         df.to_csv(out / f"{name}.csv", index=False)
     (out / "overview.md").write_text(overview_markdown(summary, metric))

@@ -63,7 +63,11 @@ def _read_tables(folder: str | Path, spec: dict[str, Any]) -> dict[str, pd.DataF
     folder = Path(folder)
     names = ("runs", "summary", "convergence", "time_to_error", "stats", "best")
     return {
-        n: T.study_order(pd.read_csv(folder / f"{n}.csv"), spec["scenes"], spec["methods"])
+        n: T.study_order(
+            pd.read_csv(folder / f"{n}.csv"),
+            spec["scenes"],
+            None if n == "best" else spec["methods"],
+        )
         for n in names
         if (folder / f"{n}.csv").is_file()
     }
