@@ -405,7 +405,13 @@ def test_report_in_headless_chromium(report: Path, tmp_path: Path) -> None:
         assert r.screenshot_std > 2.0  # not blank
         narrow = check_page(report / page, width=800)
         assert narrow.overflow_px == 0, narrow.overflowing  # no page-wide scrolling
-    r = check_page(report / "scene-toy.html")
+    # pt's 1 s snapshot of seed 1 came at 1.3 s: the viewer says so, as the grid does
+    caption = (
+        "(function (m) { var v = window.PGI_VIEWER; v.select(m); v.state.budget = 0; v.draw();"
+        " return document.querySelector('#viewer figcaption').textContent; })"
+    )
+    r = check_page(report / "scene-toy.html", evaluate=(f"{caption}(1)", f"{caption}(2)"))
+    assert r.values == ["pt @ 1 s (snapshot at 1.30 s: not equal time)", "lt @ 1 s"], r.values
     assert r.viewer and r.viewer_key_ok  # key "0" switched the viewer to the reference
     assert r.images >= 9  # colour bar, reference, 2 methods x 2 budgets x (image + error)
 

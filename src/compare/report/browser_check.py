@@ -142,6 +142,7 @@ class PageCheck:
     screenshot: bytes = b""
     overflow_px: int = 0  # how much wider than the window the page is
     overflowing: list[str] = field(default_factory=list)  # the elements that make it so
+    values: list[Any] = field(default_factory=list)  # of the expressions asked for, in order
 
     @property
     def ok(self) -> bool:
@@ -159,8 +160,10 @@ def check_page(
     exe: str | None = None,
     screenshot: str | Path | None = None,
     width: int = 1400,
+    evaluate: tuple[str, ...] = (),
 ):
-    """Load ``path`` in headless Chromium, ``width`` pixels wide, and run the checks; returns a
+    """Load ``path`` in headless Chromium, ``width`` pixels wide, and run the checks, then
+    ``evaluate`` each JavaScript expression in turn (``values``); returns a
     :class:`PageCheck`."""
     exe = exe or find_chromium()
     if exe is None:
@@ -234,6 +237,7 @@ def check_page(
                 )
                 or []
             )
+        res.values = [ev(expression) for expression in evaluate]
         shot = cdp.send("Page.captureScreenshot", {"format": "png"}, session=sid)
         res.screenshot = base64.b64decode(shot["data"])
         # drain pending events, then collect console errors and exceptions

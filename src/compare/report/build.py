@@ -314,6 +314,12 @@ def build_scene_page(spec: dict[str, Any]) -> None:
             for row in I.false_colour(np.logspace(math.log10(lo), math.log10(hi), 256), lo, hi)
         ],
         "reference": I.b64(I.encode_rgbe(ref_v)),
+        # when each image shown was taken: the viewer marks late ones as the grid does
+        "seconds": {
+            m: {b: float(seconds[(m, float(b))]) for b in d if (m, float(b)) in seconds.index}
+            for m, d in imgs.items()
+        },
+        "overshoot": T.OVERSHOOT,
         "images": {
             m: {b: I.b64(I.encode_rgbe(I.downsample(x, vmax))) for b, x in d.items()}
             for m, d in imgs.items()
