@@ -180,7 +180,7 @@ def test_slope_ranges_come_from_each_seed_alone(tmp_path: Path) -> None:
     assert pt["slope_ref_removed_seed_min"] == pytest.approx(-1.0, abs=0.01)
     assert pt["slope_ref_removed_seed_max"] == pytest.approx(-0.5, abs=0.01)
     cell = T.slope_cells(conv[(conv.method == "pt") & (conv.metric == "relmse")]).iloc[0]
-    assert cell == f"{pt['slope']:.2f} [-1.00, -0.50]"
+    assert cell == f"{pt['slope']:.2f} (seeds -1.00 to -0.50)"
     one_seed = T.write_tables(runs[~second], tmp_path, metric="relmse", baseline="pt")
     lone = one_seed["convergence"].iloc[0]
     assert np.isnan(lone["slope_seed_min"])  # a range needs two seeds
@@ -203,6 +203,13 @@ def test_tables_list_methods_in_the_study_order(tmp_path: Path) -> None:
     assert list(best["best"].method) == ["lt", "pt", "pt"]
     plain = T.write_tables(_runs(), tmp_path, metric="relmse", baseline="pt")
     assert list(plain["summary"].method.unique()) == ["lt", "pt"]  # none given: alphabetical
+    # Rows are taken by position: runs concatenated without a fresh index (labels repeat)
+    # keep their count, and the per-seed slopes their seeds.
+    halves = [r.reset_index(drop=True) for _, r in _runs().groupby("seed")]
+    repeated = T.write_tables(pd.concat(halves), tmp_path, metric="relmse", baseline="pt")
+    assert len(repeated["runs"]) == len(_runs())
+    assert repeated["summary"].equals(plain["summary"])
+    assert repeated["convergence"].equals(plain["convergence"])
 
 
 def test_baseline_against_itself_is_exactly_one_whatever_its_bound(tmp_path: Path) -> None:

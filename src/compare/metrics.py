@@ -220,3 +220,21 @@ def reference_error(
         "halves_mse": halves_mse,
         "ref_mse": halves_mse / 4.0,
     }
+
+
+# A comparison is limited by its reference unless the reference's own relMSE is this many
+# times below the image's (the workflow's ref_quality_factor, configs/schema.yaml).
+REF_QUALITY_FACTOR = 10.0
+
+
+def reference_ok(relmse: float, ref_relmse: float, factor: float = REF_QUALITY_FACTOR) -> bool:
+    """Whether a measured relMSE is ``factor`` times the reference's own or more."""
+    return bool(relmse >= factor * ref_relmse)
+
+
+def average_references(
+    a: np.ndarray, b: np.ndarray, names: tuple[str, str] = ("half 0", "half 1")
+) -> tuple[np.ndarray, dict[str, float]]:
+    """The mean of two independent references and its own error (reference_error)."""
+    err = reference_error(a, b, names)
+    return 0.5 * (np.asarray(a, np.float64) + np.asarray(b, np.float64)), err

@@ -24,6 +24,8 @@ from renderer.errors import PgiError
 from renderer.methods import check_method_parameters, check_overrides
 from renderer.scene import load_scene
 
+from .metrics import REF_QUALITY_FACTOR
+
 
 class PlanError(ValueError):
     """A config that passed the schema but cannot be run (unknown scene or method, ...)."""
@@ -70,7 +72,7 @@ class Plan:
     variants: dict[str, VariantSpec] = field(default_factory=dict)
     baseline: str = "pt"
     primary_metric: str = "relmse"
-    ref_quality_factor: float = 10.0
+    ref_quality_factor: float = REF_QUALITY_FACTOR
     title: str = "pgi comparison"
     viewer_max_size: int = 512
     timed_render_slots: int = 1
@@ -418,7 +420,7 @@ def make_plan(
         variants={label: variants[label] for label in labels},
         baseline=baseline,
         primary_metric=str(config.get("primary_metric", "relmse")),
-        ref_quality_factor=float(config.get("ref_quality_factor", 10.0)),
+        ref_quality_factor=float(config.get("ref_quality_factor", REF_QUALITY_FACTOR)),
         title=str(report.get("title", "pgi comparison")),
         viewer_max_size=int(report.get("viewer_max_size", 512)),
         timed_render_slots=int(config.get("timed_render_slots", 1)),

@@ -15,7 +15,13 @@ import numpy as np
 import pandas as pd
 
 from .imageio import read_exr, read_json, write_exr, write_json
-from .metrics import METRICS, compare_images, reference_error
+from .metrics import (
+    METRICS,
+    REF_QUALITY_FACTOR,
+    average_references,
+    compare_images,
+    reference_ok,
+)
 
 #: sidecar fields copied into every metrics row (missing ones become NaN)
 SIDECAR_FIELDS: tuple[str, ...] = (
@@ -44,8 +50,9 @@ def merge_reference(
     a = read_exr(half_a).astype(np.float64)
     b = read_exr(half_b).astype(np.float64)
     # Also validates shapes and finiteness; messages name the halves' files.
-    err = reference_error(a, b, names=(f"reference half {half_a}", f"reference half {half_b}"))
-    ref = 0.5 * (a + b)
+    ref, err = average_references(
+        a, b, names=(f"reference half {half_a}", f"reference half {half_b}")
+    )
     sides = []
     for h in (half_a, half_b):
         p = sidecar_path(h)
@@ -77,7 +84,7 @@ def compare_run(
     method: str,
     seed: int,
     threads: int,
-    ref_quality_factor: float = 10.0,
+    ref_quality_factor: float = REF_QUALITY_FACTOR,
 ) -> pd.DataFrame:
     """Compare every snapshot of one timed run against the reference; one CSV row per budget.
 
@@ -116,7 +123,7 @@ def compare_run(
         row["ref_relmse"] = ref_rel
         row["ref_mse"] = ref_mse
         # the measured error includes the reference's own error; flag unless it is well below
-        row["ref_ok"] = bool(m["relmse"] >= ref_quality_factor * ref_rel)
+        row["ref_ok"] = reference_ok(m["relmse"], ref_rel, ref_quality_factor)
         row["image"] = str(path)
         rows.append(row)
     df = pd.DataFrame(rows, columns=[*rows[0].keys()] if rows else None)

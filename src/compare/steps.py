@@ -11,6 +11,8 @@ import re
 import sys
 from pathlib import Path
 
+from .metrics import REF_QUALITY_FACTOR
+
 
 def _merge_reference(a: argparse.Namespace) -> None:
     from .runs import merge_reference
@@ -98,7 +100,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--budgets", required=True, help="comma separated, one per snapshot")
     p.add_argument("--ref", required=True)
     p.add_argument("--ref-json", required=True)
-    p.add_argument("--ref-factor", type=float, default=10.0)
+    p.add_argument("--ref-factor", type=float, default=REF_QUALITY_FACTOR)
     p.add_argument("-o", required=True)
     p.set_defaults(fn=_compare_run)
 

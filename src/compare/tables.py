@@ -79,24 +79,29 @@ def load_runs(metric_csvs: Iterable[str | Path], benchmarks: dict | None = None)
     return df.sort_values(["scene", "method", "seed", "budget"]).reset_index(drop=True)
 
 
+def listed_first(order: Sequence[str], names: Iterable[str]) -> list[str]:
+    """``order`` (the config's), then any other of ``names`` alphabetically."""
+    return list(order) + sorted(set(names) - set(order))
+
+
 def study_order(
     df: pd.DataFrame, scenes: Sequence[str] = (), methods: Sequence[str] | None = ()
 ) -> pd.DataFrame:
     """df with its rows in the study's order: scenes, then methods, as the config lists them
     (any not listed after those, alphabetically), other columns' order kept. Every table and
     every section of the report then lists methods in one order. ``methods=None``: scenes,
-    then budgets (a table with one method per scene and budget)."""
+    then budgets (a table with one method per scene and budget). Rows are taken by position,
+    whatever df's index."""
     if df.empty or "scene" not in df or ("method" not in df and methods is not None):
         return df
 
-    def rank(column: pd.Series, order: Sequence[str]) -> pd.Series:
-        position = {name: i for i, name in enumerate(order)}
-        rest = {name: len(order) + i for i, name in enumerate(sorted(set(column) - set(order)))}
-        return column.map(position | rest)
+    def rank(column: pd.Series, order: Sequence[str]) -> np.ndarray:
+        position = {name: i for i, name in enumerate(listed_first(order, column))}
+        return column.map(position).to_numpy()
 
-    second = df["budget"] if methods is None else rank(df["method"], methods)
-    keys = pd.DataFrame({"s": rank(df["scene"], scenes), "m": second})
-    return df.loc[keys.sort_values(["s", "m"], kind="stable").index].reset_index(drop=True)
+    second = df["budget"].to_numpy() if methods is None else rank(df["method"], methods)
+    rows = np.lexsort((second, rank(df["scene"], scenes)))  # stable: last key sorts first
+    return df.iloc[rows].reset_index(drop=True)
 
 
 def summarize(runs: pd.DataFrame) -> pd.DataFrame:
@@ -182,17 +187,17 @@ def _slope_fits(
     with a floor, of the error less the floor (fit_slope_above_floor). The range is NaN
     unless two seeds or more give a slope."""
 
-    def fit(rows: pd.Index) -> SlopeFit:
-        times, errors = t[rows].to_numpy(), d.loc[rows, metric].to_numpy()
-        if floor is None:
-            return fit_slope(times, errors)
-        budgets = d.loc[rows, "budget"].to_numpy()
-        return fit_slope_above_floor(times, errors, floor, budgets=budgets)
+    times, errors, budgets = t.to_numpy(), d[metric].to_numpy(), d["budget"].to_numpy()
 
-    seeds = d.groupby("seed").groups.values() if "seed" in d else []
+    def fit(rows: np.ndarray) -> SlopeFit:  # rows by position
+        if floor is None:
+            return fit_slope(times[rows], errors[rows])
+        return fit_slope_above_floor(times[rows], errors[rows], floor, budgets=budgets[rows])
+
+    seeds = d.groupby("seed").indices.values() if "seed" in d else []
     per_seed = [f.slope for f in map(fit, seeds) if math.isfinite(f.slope)]
     lo, hi = (min(per_seed), max(per_seed)) if len(per_seed) >= 2 else (math.nan, math.nan)
-    return fit(d.index), lo, hi
+    return fit(np.arange(len(d))), lo, hi
 
 
 def convergence_table(runs: pd.DataFrame, metrics: Sequence[str] = METRICS) -> pd.DataFrame:
@@ -328,19 +333,26 @@ def fmt_pm(mean: float, std: float) -> str:
 
 
 def fmt_slope(slope: float, lo: float, hi: float) -> str:
-    """A fitted slope and, when known, the range of the per-seed slopes: "-0.98 [-1.02, -0.95]"."""
+    """A fitted slope and, when known, the range of the per-seed slopes:
+    "-0.98 (seeds -1.02 to -0.95)". Not an interval around the slope: fitted over all runs,
+    it may lie outside the seeds' range when their render times differ."""
     if not math.isfinite(float(slope)):
         return "–"
     if not (math.isfinite(float(lo)) and math.isfinite(float(hi))):
         return f"{slope:.2f}"
-    return f"{slope:.2f} [{lo:.2f}, {hi:.2f}]"
+    return f"{slope:.2f} (seeds {lo:.2f} to {hi:.2f})"
 
 
 def slope_cells(conv: pd.DataFrame, column: str = "slope") -> pd.Series:
     """fmt_slope of each row of a convergence table, for ``slope`` or ``slope_ref_removed``."""
     return pd.Series(
         [
-            fmt_slope(r[column], r[f"{column}_seed_min"], r[f"{column}_seed_max"])
+            # tables written before the seed ranges existed have no such columns
+            fmt_slope(
+                r[column],
+                r.get(f"{column}_seed_min", math.nan),
+                r.get(f"{column}_seed_max", math.nan),
+            )
             for _, r in conv.iterrows()
         ],
         index=conv.index,

@@ -147,13 +147,15 @@ def cmd_reference(args: argparse.Namespace) -> int:
     return 0
 
 
-# A comparison is limited by its reference unless the reference's own relMSE is this many
-# times below the image's (the workflow's ref_quality_factor default).
-REFERENCE_QUALITY_FACTOR = 10.0
-
-
 def cmd_compare(args: argparse.Namespace) -> int:
-    from compare.metrics import compare_images, reference_error
+    import numpy as np
+
+    from compare.metrics import (
+        REF_QUALITY_FACTOR,
+        average_references,
+        compare_images,
+        reference_ok,
+    )
 
     from .imageio import read_exr_and_channels
 
@@ -169,11 +171,14 @@ def cmd_compare(args: argparse.Namespace) -> int:
     test, ref = read[0][0], read[1][0]
     own: dict[str, float] = {}
     if args.second_reference:  # two independent references: their mean, and its error
+        names = (args.reference, args.second_reference)
+        if np.array_equal(ref, read[2][0]) and ref.any():
+            raise PgiError(f"{names[0]} and {names[1]} are the same image: the second "
+                           "reference must be an independent render (another --seed)")  # fmt: skip
         try:
-            own = reference_error(ref, read[2][0], names=(args.reference, args.second_reference))
+            ref, own = average_references(ref, read[2][0], names)
         except ValueError as e:
-            raise PgiError(f"{args.reference} vs {args.second_reference}: {e}") from None
-        ref = 0.5 * (ref + read[2][0])
+            raise PgiError(f"{names[0]} vs {names[1]}: {e}") from None
     try:
         metrics = compare_images(test, ref)
     except ValueError as e:
@@ -187,10 +192,10 @@ def cmd_compare(args: argparse.Namespace) -> int:
     else:
         for key, value in metrics.items():
             print(f"{key:>16}  {value:.6g}")
-    if own and not metrics["relmse"] > REFERENCE_QUALITY_FACTOR * own["ref_relmse"]:
+    if own and not reference_ok(metrics["relmse"], own["ref_relmse"]):
         print(
             f"note: the references' mean has relMSE {own['ref_relmse']:.3g} of its own, not "
-            f"{REFERENCE_QUALITY_FACTOR:g}x below this image's {metrics['relmse']:.3g}: it "
+            f"{REF_QUALITY_FACTOR:g}x below this image's {metrics['relmse']:.3g}: it "
             "limits this comparison (every metric includes its error)",
             file=sys.stderr,
         )

@@ -97,15 +97,20 @@ def _ref_error_for(metric: str, ref: dict[str, Any]) -> float | None:
 _BOUND_SIGN = {"<=": "≤ ", ">=": "≥ ", "?": "?"}
 
 
-def _slopes_note() -> str:
+def _slopes_note(reference_error_removed: bool = True) -> str:
+    removed = (
+        "A noisy reference adds its own error to every measurement, which flattens the curves "
+        'of methods that get close to it. "Reference error removed": the fit of (error − '
+        "reference error) over the runs with at least twice the reference error; blank unless "
+        "those runs come from three budgets or more, the largest at least 4x the smallest. "
+    )
     return (
-        '<p class="note">A noisy reference adds its own error to every measurement, which '
-        'flattens the curves of methods that get close to it. "Reference error removed": the '
-        "fit of (error − reference error) over the runs with at least twice the reference "
-        "error; blank unless those runs come from three budgets or more, the largest at least "
-        "4x the smallest. The plots' legends give the slopes as measured. In brackets: the "
-        "smallest and largest slope fitted to one seed's runs alone (the seeds are "
-        "independent, the snapshots of one run are not), blank with fewer than two seeds.</p>"
+        f'<p class="note">{removed if reference_error_removed else ""}The plots\' legends give '
+        "the slopes as measured. In brackets: the smallest and largest of the slopes fitted to "
+        "one seed's runs alone (the seeds are independent, the snapshots of one run are not), "
+        "blank unless two seeds or more give one. The slope before the brackets is fitted over "
+        "all runs, so it is not the middle of that range and may lie outside it when the "
+        "seeds' render times differ.</p>"
     )
 
 
@@ -429,7 +434,10 @@ def build_index(spec: dict[str, Any]) -> None:
     ]
     variants: dict[str, str] = spec.get("variants") or {}
     if variants:
-        items = "; ".join(f"<b>{e(label)}</b>: {e(what)}" for label, what in variants.items())
+        # in the study's order (the spec's JSON has its keys sorted)
+        items = "; ".join(
+            f"<b>{e(label)}</b>: {e(variants[label])}" for label in methods if label in variants
+        )
         body.append(f'<p class="note">Variants (a method with settings of its own): {items}.</p>')
     body.append(_reading_note())
 
@@ -521,9 +529,9 @@ def build_index(spec: dict[str, Any]) -> None:
         cm = conv[conv.metric == metric]
         body.append(f"<h2>Convergence slopes ({e(_metric_label(metric))} vs time, log-log)</h2>")
         columns = ["slope"]
-        body.append(_slopes_note())
         if metric in T.REFERENCE_ERROR and "slope_ref_removed" in cm:
             columns.append("slope_ref_removed")
+        body.append(_slopes_note(len(columns) > 1))
         for col in columns:
             c = cm.assign(cell=T.slope_cells(cm, col)).pivot(
                 index="scene", columns="method", values="cell"
@@ -556,7 +564,7 @@ def build_index(spec: dict[str, Any]) -> None:
                 "reference relMSE (est.)": r.get("ref_relmse"),
                 "flagged cells": int((~summary[summary.scene == s].ref_ok.astype(bool)).sum()),
             }
-            for s, r in refs.items()
+            for s, r in ((s, refs[s]) for s in scenes if s in refs)  # the study's order
         ]
     )
     body.append(

@@ -15,7 +15,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.ticker import NullLocator  # noqa: E402
 
 from ..convergence import fit_slope  # noqa: E402
-from ..tables import METRIC_LABELS, render_time  # noqa: E402
+from ..tables import METRIC_LABELS, listed_first, render_time  # noqa: E402
 
 plt.rcParams["svg.fonttype"] = "none"  # keep text as text: smaller, searchable
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "h")
@@ -44,7 +44,7 @@ def convergence_svg(
         return _no_data_svg(title, "no finite positive values to plot on a log scale")
     fig, ax = plt.subplots(figsize=(7.6, 4.2), dpi=100)
     # A marker per method as well as a colour: curves that coincide (pm and sppm) stay apart.
-    order = list(colours) + sorted(set(runs["method"]) - set(colours))
+    order = listed_first(list(colours), runs["method"])
     markers = {m: MARKERS[i % len(MARKERS)] for i, m in enumerate(order)}
     for method, d in runs.groupby("method", sort=False):  # the legend in the study's order
         t_all = render_time(d)
