@@ -180,7 +180,10 @@ def test_slope_ranges_come_from_each_seed_alone(tmp_path: Path) -> None:
     assert pt["slope_ref_removed_seed_min"] == pytest.approx(-1.0, abs=0.01)
     assert pt["slope_ref_removed_seed_max"] == pytest.approx(-0.5, abs=0.01)
     cell = T.slope_cells(conv[(conv.method == "pt") & (conv.metric == "relmse")]).iloc[0]
-    assert cell == f"{pt['slope']:.2f} (seeds -1.00 to -0.50)"
+    assert cell == f"{pt['slope']:.2f}<br><small>(seeds -1.00 to -0.50)</small>"
+    text = T.fmt_slope(pt["slope"], pt["slope_seed_min"], pt["slope_seed_max"])
+    assert text == f"{pt['slope']:.2f} (seeds -1.00 to -0.50)"
+    assert "<br><small>(seeds -1.00 to -0.50)</small>" in T.frame_html(pd.DataFrame({"c": [cell]}))
     one_seed = T.write_tables(runs[~second], tmp_path, metric="relmse", baseline="pt")
     lone = one_seed["convergence"].iloc[0]
     assert np.isnan(lone["slope_seed_min"])  # a range needs two seeds

@@ -332,19 +332,26 @@ def fmt_pm(mean: float, std: float) -> str:
     return f"{fmt(mean)} ± {fmt(std, 2)}"
 
 
-def fmt_slope(slope: float, lo: float, hi: float) -> str:
+class Html(str):
+    """Text that is already HTML: frame_html puts it in a cell as it is."""
+
+
+def fmt_slope(slope: float, lo: float, hi: float, html: bool = False) -> str:
     """A fitted slope and, when known, the range of the per-seed slopes:
-    "-0.98 (seeds -1.02 to -0.95)". Not an interval around the slope: fitted over all runs,
-    it may lie outside the seeds' range when their render times differ."""
+    "-0.98 (seeds -1.02 to -0.95)"; with ``html``, the range on a line of its own in small
+    print. Not an interval around the slope: fitted over all runs, it may lie outside the
+    seeds' range when their render times differ."""
     if not math.isfinite(float(slope)):
         return "–"
     if not (math.isfinite(float(lo)) and math.isfinite(float(hi))):
         return f"{slope:.2f}"
-    return f"{slope:.2f} (seeds {lo:.2f} to {hi:.2f})"
+    seeds = f"(seeds {lo:.2f} to {hi:.2f})"
+    return Html(f"{slope:.2f}<br><small>{seeds}</small>") if html else f"{slope:.2f} {seeds}"
 
 
 def slope_cells(conv: pd.DataFrame, column: str = "slope") -> pd.Series:
-    """fmt_slope of each row of a convergence table, for ``slope`` or ``slope_ref_removed``."""
+    """fmt_slope (HTML) of each row of a convergence table, for ``slope`` or
+    ``slope_ref_removed``."""
     return pd.Series(
         [
             # tables written before the seed ranges existed have no such columns
@@ -352,6 +359,7 @@ def slope_cells(conv: pd.DataFrame, column: str = "slope") -> pd.Series:
                 r[column],
                 r.get(f"{column}_seed_min", math.nan),
                 r.get(f"{column}_seed_max", math.nan),
+                html=True,
             )
             for _, r in conv.iterrows()
         ],
@@ -478,7 +486,7 @@ def frame_html(df: pd.DataFrame, float_digits: int = 3) -> str:
                 s = fmt(float(v), float_digits)
             else:
                 s = str(v)
-            parts.append(f"<td>{e(s)}</td>")
+            parts.append(f"<td>{v if isinstance(v, Html) else e(s)}</td>")
         parts.append("</tr>")
     parts.append("</tbody></table>")
     return "".join(parts)

@@ -106,11 +106,11 @@ def _slopes_note(reference_error_removed: bool = True) -> str:
     )
     return (
         f'<p class="note">{removed if reference_error_removed else ""}The plots\' legends give '
-        "the slopes as measured. In brackets: the smallest and largest of the slopes fitted to "
-        "one seed's runs alone (the seeds are independent, the snapshots of one run are not), "
-        "blank unless two seeds or more give one. The slope before the brackets is fitted over "
-        "all runs, so it is not the middle of that range and may lie outside it when the "
-        "seeds' render times differ.</p>"
+        "the slopes as measured. Under each slope, as (seeds a to b): the smallest and largest "
+        "of the slopes fitted to one seed's runs alone (the seeds are independent, the "
+        "snapshots of one run are not), left out unless two seeds or more give one. The slope "
+        "above is fitted over all runs, so it is not the middle of that range and may lie "
+        "outside it when the seeds' render times differ.</p>"
     )
 
 
