@@ -365,6 +365,31 @@ def test_a_time_to_error_never_reached_is_a_dash(report: Path, tmp_path: Path) -
     assert "– s" not in index  # the old cell: "– s*"
 
 
+def test_index_lists_scenes_and_variants_in_the_config_order(report: Path, tmp_path: Path) -> None:
+    """The spec's JSON arrives with its keys sorted (refs, variants): the reference-quality
+    table and the variants note still follow the config's order, as every other section."""
+    tables = tmp_path / "tables"
+    tables.mkdir()
+    for csv in (report / "tables").glob("*.csv"):
+        df = pd.read_csv(csv)
+        if "scene" in df:  # a second scene, "abc", after "toy" in the config
+            df = pd.concat([df, df.assign(scene="abc")], ignore_index=True)
+        df.to_csv(tables / csv.name, index=False)
+    ref = str(report.parent / "ref.json")
+    build_index(
+        {
+            "reports": str(tmp_path / "out"), "tables": str(tables), "metric": "relmse",
+            "baseline": "pt", "factor": 10, "title": "t", "study": "t", "methods": ["pt", "lt"],
+            "scenes": ["toy", "abc"], "refs": {"abc": ref, "toy": ref},
+            "variants": {"lt": "lt with settings", "pt": "pt with settings"},
+        }
+    )  # fmt: skip
+    index = (tmp_path / "out" / "index.html").read_text()
+    quality = index[index.index("<h2>Reference quality</h2>") :]
+    assert quality.index("<td>toy</td>") < quality.index("<td>abc</td>")
+    assert index.index("<b>pt</b>: pt with settings") < index.index("<b>lt</b>: lt with settings")
+
+
 def test_report_files(report: Path) -> None:
     index = (report / "index.html").read_text()
     page = (report / "scene-toy.html").read_text()
