@@ -186,7 +186,6 @@ def _slope_fits(
     """(fit over all of d's runs, min and max of the slopes over each seed's runs alone);
     with a floor, of the error less the floor (fit_slope_above_floor). The range is NaN
     unless two seeds or more give a slope."""
-
     times, errors, budgets = t.to_numpy(), d[metric].to_numpy(), d["budget"].to_numpy()
 
     def fit(rows: np.ndarray) -> SlopeFit:  # rows by position
