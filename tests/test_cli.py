@@ -329,6 +329,15 @@ def test_compare_against_two_references_estimates_their_own_error(tmp_path):
     assert r.returncode == 0 and "ref_relmse" in r.stdout and r.stderr == "", r.stderr
     r = pgi("compare", str(tmp_path / "test_far.exr"), refs[0])  # one reference: no estimate
     assert r.returncode == 0 and "ref_relmse" not in r.stdout and r.stderr == ""
+    # The workflow's reference (the mean of two halves) brings its error in its sidecar.
+    from compare.runs import merge_reference
+
+    merged = tmp_path / "merged.exr"
+    merge_reference(*refs, merged, merged.with_suffix(".json"))
+    r = pgi("compare", str(tmp_path / "test_close.exr"), str(merged), "--json")
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout)["ref_mse"] == pytest.approx(m["ref_mse"])
+    assert "limits this comparison" in r.stderr
     write_exr(tmp_path / "small.exr", truth[:8, :8].astype("f4"))
     r = pgi("compare", str(tmp_path / "test_far.exr"), refs[0], str(tmp_path / "small.exr"))
     assert r.returncode != 0 and "small.exr" in r.stderr and "Traceback" not in r.stderr

@@ -147,6 +147,22 @@ def cmd_reference(args: argparse.Namespace) -> int:
     return 0
 
 
+def _recorded_reference_error(reference: Path, shape: tuple[int, ...]) -> dict[str, float]:
+    """The error a reference's sidecar records of it: the workflow's ref.json beside the mean
+    of its two halves (halves_relmse, ref_relmse, halves_mse, ref_mse), when it describes an
+    image of this size. Empty for any other reference."""
+    keys = ("halves_relmse", "ref_relmse", "halves_mse", "ref_mse")
+    try:
+        info = json.loads(reference.with_suffix(".json").read_text())
+    except (OSError, ValueError):
+        return {}
+    if not isinstance(info, dict) or (info.get("height"), info.get("width")) != shape[:2]:
+        return {}
+    if not all(isinstance(info.get(k), int | float) for k in keys):
+        return {}
+    return {k: float(info[k]) for k in keys}
+
+
 def cmd_compare(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -179,6 +195,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
             ref, own = average_references(ref, read[2][0], names)
         except ValueError as e:
             raise PgiError(f"{names[0]} vs {names[1]}: {e}") from None
+    else:
+        own = _recorded_reference_error(Path(args.reference), ref.shape)
     try:
         metrics = compare_images(test, ref)
     except ValueError as e:
@@ -194,7 +212,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
             print(f"{key:>16}  {value:.6g}")
     if own and not reference_ok(metrics["relmse"], own["ref_relmse"]):
         print(
-            f"note: the references' mean has relMSE {own['ref_relmse']:.3g} of its own, not "
+            f"note: the reference has relMSE {own['ref_relmse']:.3g} of its own, not "
             f"{REF_QUALITY_FACTOR:g}x below this image's {metrics['relmse']:.3g}: it "
             "limits this comparison (every metric includes its error)",
             file=sys.stderr,
@@ -301,7 +319,8 @@ def build_parser() -> argparse.ArgumentParser:
         nargs="?",
         help="a second, independent reference .exr (another --seed): the comparison is "
         "against their mean, and its own error is estimated from their difference (ref_relmse, "
-        "ref_mse; a quarter of halves_relmse, halves_mse)",
+        "ref_mse; a quarter of halves_relmse, halves_mse). Without it, a reference the "
+        "workflow merged from two halves brings that estimate in its JSON sidecar",
     )
     c.add_argument("--json", action="store_true", help="print JSON")
     c.set_defaults(func=cmd_compare)
