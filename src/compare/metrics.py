@@ -197,6 +197,10 @@ def compare_images(test: np.ndarray, ref: np.ndarray) -> dict[str, float]:
     }
 
 
+# What reference_error returns, and what the workflow's ref.json records of its reference.
+REFERENCE_ERROR_KEYS = ("halves_relmse", "ref_relmse", "halves_mse", "ref_mse")
+
+
 def reference_error(
     half_a: np.ndarray, half_b: np.ndarray, names: tuple[str, str] = ("half 0", "half 1")
 ) -> dict[str, float]:

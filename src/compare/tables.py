@@ -515,17 +515,16 @@ def write_tables(
     out.mkdir(parents=True, exist_ok=True)
     runs = study_order(runs, scenes, methods)
     summary = study_order(summarize(runs), scenes, methods)
+    # The tables derived from these group alphabetically: each is put in the study's order.
     tables = {
         "runs": runs,
         "summary": summary,
-        "best": best_methods(summary, metric),
-        "convergence": convergence_table(runs),
-        "time_to_error": time_to_error_table(summary, metric, baseline),
-        "stats": stats_table(runs),
-    }
-    tables = {
-        name: study_order(df, scenes, None if name == "best" else methods)
-        for name, df in tables.items()
+        "best": study_order(best_methods(summary, metric), scenes, None),
+        "convergence": study_order(convergence_table(runs), scenes, methods),
+        "time_to_error": study_order(
+            time_to_error_table(summary, metric, baseline), scenes, methods
+        ),
+        "stats": study_order(stats_table(runs), scenes, methods),
     }
     for name, df in tables.items():
         df.to_csv(out / f"{name}.csv", index=False)

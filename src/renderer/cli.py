@@ -151,7 +151,8 @@ def _recorded_reference_error(reference: Path, shape: tuple[int, ...]) -> dict[s
     """The error a reference's sidecar records of it: the workflow's ref.json beside the mean
     of its two halves (halves_relmse, ref_relmse, halves_mse, ref_mse), when it describes an
     image of this size. Empty for any other reference."""
-    keys = ("halves_relmse", "ref_relmse", "halves_mse", "ref_mse")
+    from compare.metrics import REFERENCE_ERROR_KEYS as keys
+
     try:
         info = json.loads(reference.with_suffix(".json").read_text())
     except (OSError, ValueError):
