@@ -27,7 +27,12 @@ os.environ["PYTHONPATH"] = os.pathsep.join(
     [SRC] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p and p != SRC]
 )
 
-from compare.plan import PlanError, make_plan  # noqa: E402
+from compare.plan import (  # noqa: E402
+    PlanError,
+    check_config_files,
+    make_plan,
+    number_as_text_hint,
+)
 
 
 # The default study, unless a config is given: a config of one's own must not inherit the
@@ -42,13 +47,18 @@ if not workflow.overwrite_configfiles:
 # and the key (not the schema, not a traceback), non-zero exit.
 CONFIG_FILES = ", ".join(str(f) for f in workflow.overwrite_configfiles) or "configs/default.yaml"
 try:
+    check_config_files(workflow.overwrite_configfiles)
+except PlanError as e:
+    sys.exit(f"config: {e}")
+try:
     validate(config, "configs/schema.yaml")
 except WorkflowError as e:
     why = e.__cause__ or e.__context__  # the schema's own error
     if not isinstance(why, jsonschema.ValidationError):
         raise
     key = "".join(f"[{k}]" if isinstance(k, int) else f".{k}" for k in why.absolute_path)
-    sys.exit(f"config ({CONFIG_FILES}): {key.lstrip('.') or 'top level'}: {why.message}")
+    hint = number_as_text_hint(why.instance) if why.validator == "type" else ""
+    sys.exit(f"config ({CONFIG_FILES}): {key.lstrip('.') or 'top level'}: {why.message}{hint}")
 
 try:
     PLAN = make_plan(config, workflow.basedir)

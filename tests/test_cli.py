@@ -343,6 +343,26 @@ def test_compare_against_two_references_estimates_their_own_error(tmp_path):
     assert r.returncode != 0 and "small.exr" in r.stderr and "Traceback" not in r.stderr
 
 
+def test_a_reference_sidecar_with_impossible_errors_is_ignored(tmp_path):
+    """A hand-edited ref.json whose own error is Infinity, NaN, negative or a boolean gives no
+    estimate: Infinity used to reach `--json` output and end in a traceback."""
+    from renderer.imageio import write_exr
+
+    image = np.full((8, 8, 3), 0.5, np.float32)
+    write_exr(tmp_path / "ref.exr", image)
+    write_exr(tmp_path / "test.exr", image * 1.1)
+    for bad in ("Infinity", "NaN", "-1", "true"):
+        sidecar = {"width": 8, "height": 8, "halves_relmse": 1e-3, "halves_mse": 1e-3,
+                   "ref_relmse": 1e-3, "ref_mse": 1e-3}  # fmt: skip
+        text = json.dumps(sidecar).replace('"ref_relmse": 0.001', f'"ref_relmse": {bad}')
+        (tmp_path / "ref.json").write_text(text)
+        r = pgi("compare", str(tmp_path / "test.exr"), str(tmp_path / "ref.exr"), "--json")
+        assert r.returncode == 0 and "ref_relmse" not in r.stdout, (bad, r.stderr)
+    (tmp_path / "ref.json").write_text(json.dumps(sidecar))  # a sound one is read
+    r = pgi("compare", str(tmp_path / "test.exr"), str(tmp_path / "ref.exr"), "--json")
+    assert json.loads(r.stdout)["ref_relmse"] == 1e-3
+
+
 def test_unwritable_outputs_are_refused_before_rendering(tmp_path):
     (tmp_path / "out" / "a.json").mkdir(parents=True)  # the sidecar's path is taken
     (tmp_path / "dir.exr").mkdir()
@@ -468,6 +488,11 @@ def test_failure_mid_render_keeps_whole_snapshots_only(
     sidecar = json.loads(snapshot.with_suffix(".json").read_text())
     assert sidecar["snapshot_budget"] == 1e-06 and sidecar["spp"] > 0
     assert read_exr(snapshot).shape == (16, 16, 3)
+    # A final image left by an earlier run is named as such, not taken for this run's.
+    out.write_bytes(b"earlier")
+    assert cli.main([*args, *small("--threads", "1")]) == code
+    assert f"the {out} there is from an earlier run" in capsys.readouterr().err
+    assert out.read_bytes() == b"earlier"
 
 
 def test_fingerprints_cover_the_code_each_output_runs():

@@ -249,6 +249,23 @@ def test_plan_refuses_a_variant_parameter_its_method_lacks() -> None:
         make_plan({**GOOD, "variants": bad}, ROOT)
 
 
+def test_plan_refuses_a_method_parameter_value_the_render_would_refuse() -> None:
+    """Values are read as each render gets them, its method built on its scene: these passed
+    the dry run and failed the render jobs after the references had run (found by a review)."""
+    bad = {"pt-x": {"method": "pt", "set": ["method.spp_per_wave=0"]}}
+    with pytest.raises(PlanError, match=r"pt-x on scene 'cbox': method pt: spp_per_wave must"):
+        make_plan({**GOOD, "variants": bad}, ROOT)
+    with pytest.raises(PlanError, match=r"pt on scene 'cbox': method pt: spp_per_wave must"):
+        make_plan({**GOOD, "method_args": {"pt": ["--set", "method.spp_per_wave=abc"]}}, ROOT)
+    # method_args reach the method's variants too, after the variant's own settings
+    wave = {"pt-w": {"method": "pt", "set": ["method.spp_per_wave=2"]}}
+    args = {"pt": ["--set", "method.spp_per_wave=-1"]}
+    with pytest.raises(PlanError, match=r"pt-w on scene 'cbox': .*got -1"):
+        make_plan({**GOOD, "methods": ["lt"], "baseline": "lt", "variants": wave,
+                   "method_args": args}, ROOT)  # fmt: skip
+    assert make_plan({**GOOD, "variants": wave}, ROOT).methods == ("pt", "pt-w")
+
+
 def test_plan_records_the_code_fingerprints_and_refuses_a_pgi_without_them(tmp_path: Path) -> None:
     cfg = {**GOOD, "scenes_dir": str(_scenes(tmp_path)), "pgi": _fake_pgi(tmp_path)}
     plan = make_plan(cfg, tmp_path, check_scenes=False)

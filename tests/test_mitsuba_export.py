@@ -327,6 +327,28 @@ def test_camera_rays_in_a_medium_reach_any_scale(tmp_path, distance, far_light):
     assert np.all(np.abs(mean - p) < 4 * np.sqrt(p * (1 - p) / n)), mean
 
 
+def test_a_target_close_to_the_origin_keeps_its_direction(tmp_path):
+    """Mitsuba takes target - origin in float32: a camera or spot target 1e-8 or 1e-12 from
+    its origin (valid in our float64) gave Mitsuba no direction and a black image (found by a
+    review)."""
+    mi = import_mitsuba()
+    origin, direction = np.array([0.0, 0.5, 3.9]), np.array([0.0, -0.6, -0.8])
+    doc = everything(tmp_path)
+    doc["camera"] |= {"origin": origin.tolist(), "target": (origin + 1e-8 * direction).tolist()}
+    doc["lights"] = [{"type": "spot", "position": origin.tolist(),
+                      "target": (origin + 1e-12 * direction).tolist(), "intensity": 1}]  # fmt: skip
+    scene = load_scene(write_scene(tmp_path, doc))
+    d = to_mitsuba_dict(scene)
+    light = scene.lights[0]
+    for to_world, (start, end) in (
+        (d["sensor"]["to_world"], (scene.camera.origin, scene.camera.target)),
+        (d["light_000"]["to_world"], (light.position, light.target)),
+    ):
+        forward = np.array(to_world @ mi.ScalarVector3f(0, 0, 1)).ravel()
+        expected = (end - start) / np.linalg.norm(end - start)  # as our float64 has it
+        np.testing.assert_allclose(forward, expected, atol=1e-6)
+
+
 def test_only_rgb_mitsuba_variants_are_accepted():
     """Spectral and mono variants turn RGB values into spectra: not the scene we render."""
     for variant in ("scalar_spectral", "scalar_mono", "scalar_rgb_polarized"):
@@ -445,3 +467,30 @@ def test_libllvm_search_finds_only_llvm_16_or_newer():
         import re
 
         assert int(re.search(r"libLLVM(?:-|\.so\.)(\d+)", path).group(1)) >= 16
+
+
+def test_the_fast_variant_failing_is_said_and_ctrl_c_is_not_swallowed(monkeypatch, capsys):
+    """Without a variant set, pgi tries llvm_ad_rgb and falls back to scalar_rgb (2-3x
+    slower). The fallback used to be silent, and it swallowed Ctrl-C, which Dr.Jit re-raises as
+    a RuntimeError: an interrupted render went on, slower (found by a review)."""
+    chosen = []
+
+    def set_variant(name):
+        if name == "llvm_ad_rgb":
+            raise failure
+        chosen.append(name)
+
+    monkeypatch.setenv("DRJIT_LIBLLVM_PATH", "libLLVM.so")
+    monkeypatch.delenv("PGI_MITSUBA_VARIANT", raising=False)
+    monkeypatch.setattr(mi, "variant", lambda: None)
+    monkeypatch.setattr(mi, "set_variant", set_variant)
+    failure = RuntimeError("LLVM backend could not be initialised")
+    import_mitsuba()
+    assert chosen == ["scalar_rgb"] and "using scalar_rgb, 2-3x slower" in capsys.readouterr().err
+    try:
+        raise KeyboardInterrupt
+    except KeyboardInterrupt as e:
+        failure = RuntimeError("interrupted")
+        failure.__context__ = e
+    with pytest.raises(KeyboardInterrupt):
+        import_mitsuba()

@@ -507,6 +507,9 @@ def test_unreadable_files_are_one_line_errors(tmp_path):
     (tmp_path / "d.npy").write_text("not numpy\n")
     doc = edit(media={"smoke": {"type": "grid", "density": "d.npy", "albedo": 0.5}})
     expect_error(write(tmp_path, doc), "media.smoke.density", "not a numpy .npy file")
+    # A .npy header that breaks numpy's own parser (found by a review: a traceback)
+    (tmp_path / "d.npy").write_bytes(b"\x93NUMPY\x01\x00\x10\x00{'descr': 'zz', }   \n" + b"x" * 40)
+    expect_error(write(tmp_path, doc), "media.smoke.density", "cannot read .*d.npy as a .npy")
     msg = expect_error(grid_scene(tmp_path, np.ones((4, 4))), "media.smoke.density", "3-D")
     assert "shape [4, 4] of float64" in msg
 

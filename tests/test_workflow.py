@@ -238,6 +238,25 @@ def test_bad_config_fails_clearly(study: Path) -> None:
         assert out[0].startswith("config (") and "bad.yaml): " + line in out[0], out
 
 
+def test_config_numbers_as_text_and_repeated_keys_are_explained(study: Path) -> None:
+    """The workflow reads configs as YAML 1.1: 5e-1 and 1.0e3 arrive as text, which scene files
+    read as numbers, and a key written twice keeps its last value silently. Both stop the plan
+    with a line that says so (found by a review)."""
+    path = write_config(study / "bad.yaml", study / "scenes", budgets=[0.5, 1])
+    text = path.read_text()
+    for edited, line in [
+        (text.replace("- 0.5", "- 5e-1"), "budgets[0]: '5e-1' is not of type 'number' (the "
+         "workflow reads configs as YAML 1.1, where 5e-1 is text, not a number: write 0.5)"),
+        (text.replace("spp: 256", "spp: 1.0e3"), "write 1000)"),
+        (text + "methods: [pt]\n", "bad.yaml:"),
+    ]:  # fmt: skip
+        path.write_text(edited)
+        p = snakemake(study, "--configfile", "bad.yaml", "-n", check=False)
+        out = (p.stdout + p.stderr).strip().splitlines()
+        assert p.returncode != 0 and len(out) == 1 and line in out[0], out
+    assert "duplicate key 'methods'" in out[0]
+
+
 @pytest.mark.parametrize(
     "over,key",
     [

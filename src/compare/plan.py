@@ -31,6 +31,39 @@ class PlanError(ValueError):
     """A config that passed the schema but cannot be run (unknown scene or method, ...)."""
 
 
+def check_config_files(files: list[Path]) -> None:
+    """Config files read strictly before the workflow's own reader (YAML 1.1) takes them: a
+    key written twice would silently keep its last value."""
+    from renderer.scene.loader import check_yaml_file
+
+    for file in files:
+        try:
+            check_yaml_file(Path(file))
+        except PgiError as e:
+            raise PlanError(str(e)) from None
+
+
+def number_as_text_hint(value: Any) -> str:
+    """For a schema's type error: why a number may have arrived as text. The workflow reads
+    configs as YAML 1.1, where 5e-1 and 1.0e3 are strings (scene files read them as numbers)."""
+    from renderer.scene.loader import parse_yaml_value
+
+    if not isinstance(value, str):
+        return ""
+    try:
+        number = parse_yaml_value(value, "config")
+    except PgiError:
+        return ""
+    if isinstance(number, bool) or not isinstance(number, int | float):
+        return ""
+    if isinstance(number, float) and number.is_integer() and abs(number) < 2**53:
+        number = int(number)  # 1.0e3 -> 1000, which fits an integer key too
+    return (
+        f" (the workflow reads configs as YAML 1.1, where {value} is text, not a number: "
+        f"write {number!r})"
+    )
+
+
 @dataclass(frozen=True)
 class SceneSpec:
     name: str
@@ -403,7 +436,7 @@ def make_plan(
         raise PlanError(f"budgets: two budgets have the same file tag: {tags}")
     report = dict(config.get("report") or {})
     threads = int(config.get("threads", 2))
-    return Plan(
+    plan = Plan(
         name=str(config.get("name", "study")),
         root=root,
         results=Path(config.get("results_dir", "results")),
@@ -426,3 +459,29 @@ def make_plan(
         timed_render_slots=int(config.get("timed_render_slots", 1)),
         code=code_fingerprints(pgi) if check_methods else {},
     )
+    if check_here:
+        check_method_values(plan)
+    return plan
+
+
+def check_method_values(plan: Plan) -> None:
+    """Method parameters' values, as each render will get them (a study's and a scene's
+    `set`, a variant's, then `method_args`): the method is built on its scene and dropped
+    (milliseconds; Mitsuba's takes a second or two), so a value out of range
+    (`method.spp_per_wave=0`) stops the plan, not a render after the references have run."""
+    from renderer.cli import split_sets
+    from renderer.methods import get_method, method_ids
+
+    for name, spec in plan.scenes.items():
+        for label in plan.methods:
+            args = plan.render_args(name, label)
+            method = args[1]
+            sets = [args[i + 1] for i, a in enumerate(args) if a == "--set"]
+            overrides, params = split_sets(sets)
+            if not params or method not in method_ids():
+                continue
+            try:
+                scene = load_scene(spec.path / "scene.yaml", overrides)
+                get_method(method)(scene, seed=0, threads=1, params=params, spp_budget=None)
+            except PgiError as e:
+                raise PlanError(f"{label} on scene '{name}': {e}") from None

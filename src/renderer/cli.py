@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 
 from . import __version__
-from .errors import PgiError, shorten_repr
+from .errors import PgiError, caused_by_interrupt, shorten_repr
 
 
 def _floats(text: str) -> list[float]:
@@ -48,7 +48,7 @@ def _seed(text: str) -> int:
     return value
 
 
-def _split_sets(items: list[str], command: str = "render") -> tuple[list[str], dict]:
+def split_sets(items: list[str], command: str = "render") -> tuple[list[str], dict]:
     """--set key=value: ``method.X`` keys are method parameters, the rest edit the scene."""
     overrides, params = [], {}
     for item in items:
@@ -94,7 +94,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     for path in snapshot_files:
         check_output_path(path)
     _refuse_overwriting_the_scene(args.scene, [out, *snapshot_files])
-    overrides, params = _split_sets(args.set)
+    overrides, params = split_sets(args.set)
     check_overrides(args.method, overrides)
     scene = load_scene(args.scene, overrides)
     settings = RenderSettings(
@@ -126,7 +126,7 @@ def cmd_reference(args: argparse.Namespace) -> int:
     out = check_output_path(args.output)
     _refuse_overwriting_the_scene(args.scene, [out])
     check_threads(args.threads)
-    overrides, _ = _split_sets(args.set, "reference")
+    overrides, _ = split_sets(args.set, "reference")
     check_overrides("mitsuba", overrides)  # the reference is Mitsuba's (volpath or volpathmis)
     scene = load_scene(args.scene, overrides)
     bar = Progress(None, args.spp, enabled=not args.quiet)
@@ -159,7 +159,11 @@ def _recorded_reference_error(reference: Path, shape: tuple[int, ...]) -> dict[s
         return {}
     if not isinstance(info, dict) or (info.get("height"), info.get("width")) != shape[:2]:
         return {}
-    if not all(isinstance(info.get(k), int | float) for k in keys):
+    values = [info.get(k) for k in keys]
+    if not all(
+        isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) and v >= 0
+        for v in values
+    ):
         return {}
     return {k: float(info[k]) for k in keys}
 
@@ -245,7 +249,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
     from .engine import build_native_scene
     from .scene import load_scene
 
-    overrides, _ = _split_sets(args.set, "validate")
+    overrides, _ = split_sets(args.set, "validate")
     scene = load_scene(args.scene, overrides)
     native = build_native_scene(scene)  # what only the core checks (e.g. a too-fine march)
     triangles = f"{len(native.triangles)} triangles"
@@ -342,17 +346,6 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _interrupted(error: BaseException) -> bool:
-    """Whether Ctrl-C caused this error (Mitsuba's JIT re-raises it as a RuntimeError)."""
-    seen = set()
-    while error is not None and id(error) not in seen:
-        if isinstance(error, KeyboardInterrupt):
-            return True
-        seen.add(id(error))
-        error = error.__cause__ or error.__context__
-    return False
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -363,8 +356,8 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except MemoryError:
         print(
-            "pgi: error: out of memory (a smaller film, fewer samples per iteration or fewer "
-            "photons/beams would fit)",
+            "pgi: error: out of memory (a coarser grid bake resolution, a smaller film, fewer "
+            "samples per iteration or fewer photons/beams would fit)",
             file=sys.stderr,
         )
         return 2
@@ -372,7 +365,7 @@ def main(argv: list[str] | None = None) -> int:
         print("pgi: interrupted", file=sys.stderr)
         return 130
     except Exception as e:
-        if not _interrupted(e):
+        if not caused_by_interrupt(e):
             raise
         print("pgi: interrupted", file=sys.stderr)
         return 130

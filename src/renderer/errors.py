@@ -30,3 +30,14 @@ def mitsuba_cause(text: str) -> str:
 def shorten_repr(value: Any, limit: int = 40) -> str:
     """The repr of a value quoted in a message, cut to `limit` characters."""
     return shorten(repr(value), limit)
+
+
+def caused_by_interrupt(error: BaseException | None) -> bool:
+    """Whether Ctrl-C caused this error (Mitsuba's JIT re-raises it as a RuntimeError)."""
+    seen = set()
+    while error is not None and id(error) not in seen:
+        if isinstance(error, KeyboardInterrupt):
+            return True
+        seen.add(id(error))
+        error = error.__cause__ or error.__context__
+    return False

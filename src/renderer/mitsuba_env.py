@@ -11,9 +11,10 @@ from __future__ import annotations
 import glob
 import os
 import re
+import sys
 from types import ModuleType
 
-from renderer.errors import PgiError
+from renderer.errors import PgiError, caused_by_interrupt, one_line
 
 LIB_DIRS = (
     "/usr/lib/x86_64-linux-gnu",
@@ -65,8 +66,15 @@ def import_mitsuba(variant: str | None = None) -> ModuleType:
             try:
                 mi.set_variant("llvm_ad_rgb")
                 return mi
-            except Exception:
-                pass
+            except Exception as e:
+                if caused_by_interrupt(e):  # Ctrl-C while Dr.Jit starts LLVM
+                    raise KeyboardInterrupt from e
+                # Still a correct render, 2-3x slower: a timed comparison must know.
+                print(
+                    f"pgi: note: Mitsuba's llvm_ad_rgb variant failed ({one_line(str(e))}); "
+                    "using scalar_rgb, 2-3x slower",
+                    file=sys.stderr,
+                )
         mi.set_variant("scalar_rgb")
     return mi
 

@@ -176,11 +176,11 @@ def render(
     except BaseException:
         # Snapshots already written are whole renders of their budgets (image and sidecar):
         # they stay, and the user is told which; the final image is never written.
-        if written:
-            print(
-                f"note: no final image; kept {', '.join(str(p) for p in written)}",
-                file=sys.stderr,
-            )
+        notes = [f"kept {', '.join(str(p) for p in written)}"] if written else []
+        if out.exists():  # not this run's: say so, rather than delete a file we did not write
+            notes.append(f"the {out} there is from an earlier run")
+        if notes:
+            print(f"note: no final image; {'; '.join(notes)}", file=sys.stderr)
         raise
     bar.update(render_seconds, method.stats().get("spp", iteration), force=True)
     if pending:  # --spp was reached first

@@ -200,6 +200,20 @@ def _read_yaml(path: Path) -> dict:
     return doc
 
 
+def check_yaml_file(path: Path) -> None:
+    """Reads a YAML file as scene files are read, for files another reader loads (workflow
+    configs): a key given twice is a PgiError naming the line, not the last one silently kept."""
+    try:
+        _load_yaml(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError):
+        return  # that reader says so itself
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f"{path}:{mark.line + 1}" if mark else str(path)
+        problem = getattr(e, "problem", None) or str(e).splitlines()[0]
+        raise PgiError(f"{where}: invalid YAML: {problem}") from None
+
+
 # --------------------------------------------------------------------------- key paths, origins
 
 
@@ -630,7 +644,9 @@ def _read_npy(val: _Validator, file: Path, p: KeyPath) -> np.ndarray:
         val.fail(p, f"file not found: {file}")
     try:
         a = np.load(file, allow_pickle=False)
-    except (OSError, ValueError, EOFError) as e:
+    except MemoryError:
+        raise
+    except Exception as e:  # a garbled header fails in numpy's parser with any error
         lines = str(e).splitlines()
         why = "not a numpy .npy file" if "pickle" in str(e) or not lines else one_line(lines[0])
         val.fail(p, f"cannot read {file} as a .npy array: {why}")

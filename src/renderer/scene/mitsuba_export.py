@@ -151,6 +151,13 @@ def _mesh(
 
 
 def _look_at(mi: Any, origin: np.ndarray, target: np.ndarray, up: np.ndarray) -> Any:
+    # Mitsuba takes target - origin in float32: a target within float32 spacing of the
+    # origin (valid in our float64) would give no direction and a black image. The same
+    # direction from a target at least as far as the origin is from 0 survives the rounding.
+    origin = np.asarray(origin, np.float64)
+    offset = np.asarray(target, np.float64) - origin
+    length = float(np.linalg.norm(offset))
+    target = origin + offset / length * max(length, float(np.abs(origin).max()), 1.0)
     return mi.ScalarTransform4f().look_at(
         origin=[float(x) for x in origin],
         target=[float(x) for x in target],
