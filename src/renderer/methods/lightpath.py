@@ -146,21 +146,35 @@ def emission_media(native: NativeScene, scene: Scene, seed: int = 0):
             point_positions.append(np.asarray(light.position, np.float64))
         else:
             point_positions.append(None)
+    camera_medium = (
+        None if scene.camera.medium is None else _medium_names(scene)[scene.camera.medium]
+    )
     if len(emitting):
         t = tri[emitting]
         centroid = t.mean(axis=1)
         normal = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
         normal /= np.linalg.norm(normal, axis=1, keepdims=True)
         extent = float(np.ptp(tri.reshape(-1, 3), axis=0).max())
-        start = centroid + normal * 1e-4 * extent
-        votes = []
-        for _ in range(_PROBE_DIRECTIONS):
-            d = rng.normal(size=(len(emitting), 3))
-            d /= np.linalg.norm(d, axis=1, keepdims=True)
-            # Keep the probe on the emitting side.
-            d = np.where((np.einsum("ij,ij->i", d, normal) < 0)[:, None], -d, d)
-            votes.append(locate_media(surfaces, start, d))
-        per_triangle[emitting] = _majority(np.stack(votes))
+        per_triangle[emitting] = _surface_media(
+            surfaces, scene, centroid, normal, extent, camera_medium, rng
+        )
+        # Each triangle starts its paths in one medium: one that a medium's boundary crosses
+        # would start some in the wrong one. Its corners (pulled 1 % towards the centroid)
+        # tell, for a boundary that cuts across it; with probes of their own, so that the
+        # centroid's stay those of earlier versions.
+        corner_rng = np.random.default_rng([seed, 1])
+        for k in range(3):
+            corner = t[:, k] + 0.01 * (centroid - t[:, k])
+            found = _surface_media(surfaces, scene, corner, normal, extent, camera_medium,
+                                   corner_rng)  # fmt: skip
+            # (an emitter that names media itself is a boundary: its paths take its sides)
+            split = np.flatnonzero(
+                (found != per_triangle[emitting]) & ~np.isin(emitting, surfaces.named_ids)
+            )
+            if len(split):
+                first = split[0]
+                media = (per_triangle[emitting[first]], found[first])
+                _refuse_split_emitter(native, scene, emitting[first], media)
     per_light = np.full(lights_area + len(scene.lights), -1, np.int32)
     for i, pos in enumerate(point_positions):
         if pos is None:
@@ -168,14 +182,10 @@ def emission_media(native: NativeScene, scene: Scene, seed: int = 0):
         d = rng.normal(size=(_PROBE_DIRECTIONS, 3))
         found = locate_media(surfaces, np.repeat(pos[None], _PROBE_DIRECTIONS, 0), d)
         per_light[lights_area + i] = _majority(found[:, None])[0]
-    if scene.camera.medium is not None:
+    if camera_medium is not None:
         # A medium no shape names (a room filled with the camera's fog) is invisible to the
         # probes. A light that the camera reaches without crossing a shape naming a medium is
         # in the camera's medium, by the same transition rule.
-        camera_medium = _medium_names(scene)[scene.camera.medium]
-        if len(emitting):
-            outcome, _ = _camera_routes(surfaces, scene, start)
-            per_triangle[emitting[_route_shares_camera_medium(outcome)]] = camera_medium
         for i, pos in enumerate(point_positions):
             if pos is None:  # directional: routes from points spread over its disk
                 outcome, side = _camera_routes(
@@ -187,6 +197,47 @@ def emission_media(native: NativeScene, scene: Scene, seed: int = 0):
                 if _route_shares_camera_medium(outcome)[0]:
                     per_light[lights_area + i] = camera_medium
     return per_triangle, per_light
+
+
+def _surface_media(
+    surfaces: _ProbeSurfaces,
+    scene: Scene,
+    points: np.ndarray,
+    normal: np.ndarray,
+    extent: float,
+    camera_medium: int | None,
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """The medium on the front side of each point of an emitting surface: the majority of
+    probes into the front hemisphere, or the camera's medium where the straight route to the
+    camera crosses no shape that names a medium."""
+    start = points + normal * 1e-4 * extent
+    votes = []
+    for _ in range(_PROBE_DIRECTIONS):
+        d = rng.normal(size=(len(points), 3))
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        # Keep the probe on the emitting side.
+        d = np.where((np.einsum("ij,ij->i", d, normal) < 0)[:, None], -d, d)
+        votes.append(locate_media(surfaces, start, d))
+    media = _majority(np.stack(votes))
+    if camera_medium is not None:
+        outcome, _ = _camera_routes(surfaces, scene, start)
+        media[_route_shares_camera_medium(outcome)] = camera_medium
+    return media
+
+
+def _refuse_split_emitter(
+    native: NativeScene, scene: Scene, triangle: int, media: tuple[int, int]
+) -> None:
+    shape = int(native.per_triangle(scene, list(range(len(scene.shapes))))[triangle])
+    names = ["vacuum", *scene.media]
+    name = scene.shapes[shape].name
+    raise PgiError(
+        f"{scene.path}: shapes[{shape}]{f' ({name})' if name else ''}: a boundary of a "
+        f"medium crosses this emitter (part of it lies in {names[media[0] + 1]}, part in "
+        f"{names[media[1] + 1]}), but light paths start in one medium per triangle: split the "
+        "emitter where the boundary crosses it (pt and mitsuba render it as it is)"
+    )
 
 
 # Points on a directional light's disk whose routes to the camera vote on its medium.
