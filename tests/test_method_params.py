@@ -24,6 +24,11 @@ BAD = [
     ("pm", "radius_scale", "big", "a number >= 1e-09"),
     ("pm", "radius_scale", 1e-160, "a number >= 1e-09"),
     ("ppb", "radius", 1e-160, "a number >= 1e-09"),
+    # wider than the scene: every photon everywhere, 20x slower (found by a review)
+    ("pm", "radius", 1e30, "a number >= 1.73205e-09 and <= 3.4641"),  # cbox: radius sqrt(3)
+    ("pm", "radius_scale", 3, "a number >= 1e-09 and <= 2"),
+    ("ppb", "radius", 2.5, "a number >= 1e-09 and <= 2"),
+    ("ppb", "surface_radius", 2.5, "a number >= 0 and <= 2"),
     ("ppb", "surface_radius", 1e-160, "0 (path-traced surfaces) or >= 1e-09"),
     ("sppm", "alpha", 1.0, "a number > 0 and < 1"),
     ("sppm", "volume_alpha", None, "a number > 0 and < 1"),

@@ -27,6 +27,9 @@ def physical_memory() -> int:
 # Radii below this fraction of the scene's bounding-sphere radius find no photon, and at
 # ~1e-150 of it 1 / (pi r^2) overflows into non-finite samples.
 MIN_RADIUS_FRACTION = 1e-9
+# A kernel wider than the scene's bounding sphere takes every photon or beam everywhere: it
+# blurs the image flat and is slow (pm at radius 1e30: 20x the time of the default).
+MAX_RADIUS_FRACTION = 2.0
 
 
 def budget_divisor(wanted: int, spp_budget: int | None) -> int:

@@ -21,7 +21,7 @@ from ..errors import PgiError
 from ..scene.model import Scene
 from ..tracer import EmbreeTracer, RayBatch
 from .lightpath import LightPaths
-from .params import MIN_RADIUS_FRACTION, MethodParams
+from .params import MAX_RADIUS_FRACTION, MIN_RADIUS_FRACTION, MethodParams
 
 DEFAULT_PHOTONS = 1 << 16
 # Vertices one iteration may record: the memory bound. Each costs about 200 bytes (the record,
@@ -47,13 +47,15 @@ class PhotonMapping:
         p.paths_fit_in_memory("photons", photons, "photon paths")
         p.camera_paths_fit_in_memory("spp_per_iteration", spp, scene.film)
         max_records = p.integer("max_records", DEFAULT_MAX_RECORDS, lo=1)
-        scale = p.number("radius_scale", DEFAULT_RADIUS_SCALE, lo=MIN_RADIUS_FRACTION)
+        scale = p.number(
+            "radius_scale", DEFAULT_RADIUS_SCALE, lo=MIN_RADIUS_FRACTION, hi=MAX_RADIUS_FRACTION
+        )
         self.native = build_native_scene(scene)
         self.tracer = EmbreeTracer(self.native.triangles, threads)
         size = self.native.core.scene_radius
-        smallest = MIN_RADIUS_FRACTION * size
-        self.radius = p.number("radius", scale * size, lo=smallest)
-        self.volume_radius = p.number("volume_radius", scale * size, lo=smallest)
+        smallest, largest = MIN_RADIUS_FRACTION * size, MAX_RADIUS_FRACTION * size
+        self.radius = p.number("radius", scale * size, lo=smallest, hi=largest)
+        self.volume_radius = p.number("volume_radius", scale * size, lo=smallest, hi=largest)
         both = "radius" in params and "volume_radius" in params
         p.refuse_unused("radius_scale", not both, "when radius and volume_radius are both given")
         self.light_paths = LightPaths(

@@ -34,7 +34,7 @@ from ..passes import trace_camera_wave
 from ..scene.model import Scene
 from ..tracer import EmbreeTracer, RayBatch
 from .lightpath import LightPaths
-from .params import MIN_RADIUS_FRACTION, MethodParams
+from .params import MAX_RADIUS_FRACTION, MIN_RADIUS_FRACTION, MethodParams
 from .schedules import expected_mse_slopes
 
 DEFAULT_LIGHT_PATHS = 1 << 13
@@ -84,13 +84,15 @@ class ProgressivePhotonBeams:
         p.paths_fit_in_memory("light_paths", light_paths, "light paths")
         p.camera_paths_fit_in_memory("spp_per_iteration", spp, scene.film)
         alpha = p.number("alpha", DEFAULT_ALPHA, lo=0, hi=1, lo_open=True)
-        radius = p.number("radius", DEFAULT_RADIUS, lo=MIN_RADIUS_FRACTION)
+        radius = p.number("radius", DEFAULT_RADIUS, lo=MIN_RADIUS_FRACTION, hi=MAX_RADIUS_FRACTION)
         piece = p.number("piece_length", DEFAULT_PIECE_LENGTH, lo=0, lo_open=True)
         max_beams = p.integer("max_beams", DEFAULT_MAX_BEAMS, lo=1)
         max_records = p.integer("max_records", DEFAULT_MAX_RECORDS, lo=1)
         gather_bounces = p.integer("gather_bounces", DEFAULT_GATHER_BOUNCES, lo=0)
         # 0: path-traced surfaces
-        surface_radius = p.number("surface_radius", DEFAULT_SURFACE_RADIUS, lo=0)
+        surface_radius = p.number(
+            "surface_radius", DEFAULT_SURFACE_RADIUS, lo=0, hi=MAX_RADIUS_FRACTION
+        )
         if 0 < surface_radius < MIN_RADIUS_FRACTION:
             p.fail("surface_radius", f"0 (path-traced surfaces) or >= {MIN_RADIUS_FRACTION:g}")
         surface_alpha = p.number("surface_alpha", DEFAULT_SURFACE_ALPHA, lo=0, hi=1, lo_open=True)
