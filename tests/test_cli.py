@@ -240,7 +240,8 @@ def test_unreadable_method_parameter_says_why_in_one_short_line(tmp_path):
 
 
 def test_images_that_are_not_whole_exr_files_are_refused(tmp_path):
-    """A truncated EXR (its pixels fail to decode) and a PNG named .exr: no metrics."""
+    """A truncated EXR (its pixels fail to decode) and a PNG named .exr: no metrics, and one
+    line that says why."""
     from renderer.imageio import write_exr
 
     rng = np.random.default_rng(0)
@@ -256,6 +257,8 @@ def test_images_that_are_not_whole_exr_files_are_refused(tmp_path):
         assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
         assert f"pgi: error: {tmp_path / name}: " in r.stderr and expected in r.stderr
         assert r.stdout == "", r.stdout
+        # one line: OpenEXR's own decoding errors, which it prints itself, go into ours
+        assert len(r.stderr.strip().splitlines()) == 1, r.stderr
     # A grey EXR is read as three equal channels: against a colour image that is a mistake.
     grey = oiio.ImageBuf(oiio.ImageSpec(64, 64, 1, oiio.FLOAT))
     grey.set_pixels(oiio.ROI(0, 64, 0, 64, 0, 1, 0, 1), rng.uniform(size=(64, 64, 1)).astype("f4"))

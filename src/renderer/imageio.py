@@ -2,15 +2,18 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import sys
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import OpenImageIO as oiio
 
-from .errors import PgiError
+from .errors import PgiError, one_line
 
 
 def read_exr(path: str | Path) -> np.ndarray:
@@ -23,17 +26,20 @@ def read_exr_and_channels(path: str | Path) -> tuple[np.ndarray, int]:
     path = Path(path)
     if not path.is_file():
         raise PgiError(f"{path}: no such image file")
-    buf = oiio.ImageBuf(str(path))
-    if buf.has_error:
-        raise PgiError(f"{path}: cannot read image: {_first_line(buf.geterror())}")
-    if buf.file_format_name != "openexr":  # metrics are defined on linear HDR values
+    with _stderr_captured() as library_said:
+        buf = oiio.ImageBuf(str(path))
+        unreadable = _first_line(buf.geterror()) if buf.has_error else ""
+        exr = not unreadable and buf.file_format_name == "openexr"
+        pixels = buf.get_pixels(oiio.FLOAT) if exr else None
+    if unreadable:
+        raise PgiError(f"{path}: cannot read image: {unreadable}")
+    if not exr:  # metrics are defined on linear HDR values
         raise PgiError(f"{path}: expected an OpenEXR image, found {buf.file_format_name or '?'}")
-    pixels = buf.get_pixels(oiio.FLOAT)
     # A truncated or corrupt file is only noticed while its pixels are decoded.
     if pixels is None or buf.has_error or pixels.ndim != 3:
-        raise PgiError(
-            f"{path}: cannot read pixels: {_first_line(buf.geterror()) or 'unexpected layout'}"
-        )
+        why = _first_line(buf.geterror()) or "unexpected layout"
+        detail = one_line(_first_line("".join(library_said)).replace(f"{path}: ", ""))
+        raise PgiError(f"{path}: cannot read pixels: {why}" + (f" ({detail})" if detail else ""))
     channels = pixels.shape[2]
     if channels == 1:
         pixels = np.repeat(pixels, 3, axis=2)
@@ -42,6 +48,25 @@ def read_exr_and_channels(path: str | Path) -> tuple[np.ndarray, int]:
     else:
         raise PgiError(f"{path}: expected 1, 3 or 4 channels, found {channels}")
     return np.ascontiguousarray(pixels, dtype=np.float32), channels
+
+
+@contextlib.contextmanager
+def _stderr_captured() -> Iterator[list[str]]:
+    """What C libraries write to the process's stderr meanwhile (OpenEXR prints its decoding
+    errors there itself), kept out of the terminal and handed over in the list on exit: a
+    failed read is one line of ours."""
+    said: list[str] = []
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as sink:
+        os.dup2(sink.fileno(), 2)
+        try:
+            yield said
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            sink.seek(0)
+            said.append(sink.read().decode("utf-8", "replace"))
 
 
 def _first_line(message: str) -> str:
