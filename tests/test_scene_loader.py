@@ -507,6 +507,13 @@ def test_unreadable_files_are_one_line_errors(tmp_path):
     (tmp_path / "d.npy").write_text("not numpy\n")
     doc = edit(media={"smoke": {"type": "grid", "density": "d.npy", "albedo": 0.5}})
     expect_error(write(tmp_path, doc), "media.smoke.density", "not a numpy .npy file")
+    np.save(tmp_path / "d.npy", np.array([{"a": 1}], dtype=object), allow_pickle=True)
+    expect_error(write(tmp_path, doc), "media.smoke.density", "holds Python objects")
+    (tmp_path / "empty.yaml").write_text("")
+    with pytest.raises(PgiError, match="empty.yaml: the file is empty"):
+        load_scene(tmp_path / "empty.yaml")
+    (tmp_path / "folder").mkdir()
+    expect_error(write(tmp_path, edit(include="folder")), "include[0]", "is a folder")
     # A .npy header that breaks numpy's own parser (found by a review: a traceback)
     (tmp_path / "d.npy").write_bytes(b"\x93NUMPY\x01\x00\x10\x00{'descr': 'zz', }   \n" + b"x" * 40)
     expect_error(write(tmp_path, doc), "media.smoke.density", "cannot read .*d.npy as a .npy")

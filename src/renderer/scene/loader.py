@@ -195,6 +195,8 @@ def _read_yaml(path: Path) -> dict:
         where = f"{path}:{mark.line + 1}" if mark else str(path)
         problem = getattr(e, "problem", None) or str(e).splitlines()[0]
         raise PgiError(f"{where}: invalid YAML: {problem}") from e
+    if doc is None:
+        raise PgiError(f"{path}: the file is empty; a scene file is a mapping of scene keys")
     if not isinstance(doc, dict):
         raise PgiError(f"{path}: expected a mapping of scene keys at the top level")
     return doc
@@ -263,6 +265,8 @@ def _merge_includes(main: Path, doc: dict, origins: _Origins) -> dict:
     sources = []
     for n, name in enumerate(inc):
         file = main.parent / name
+        if file.is_dir():
+            origins.fail(("include", n), f"{file} is a folder; include a scene file in it")
         if not file.is_file():
             origins.fail(("include", n), f"included file not found: {file}")
         if file.resolve() == main.resolve():
@@ -648,7 +652,13 @@ def _read_npy(val: _Validator, file: Path, p: KeyPath) -> np.ndarray:
         raise
     except Exception as e:  # a garbled header fails in numpy's parser with any error
         lines = str(e).splitlines()
-        why = "not a numpy .npy file" if "pickle" in str(e) or not lines else one_line(lines[0])
+        with open(file, "rb") as f:
+            npy = f.read(6) == b"\x93NUMPY"  # numpy says "pickled data" for any other file
+        if "pickle" in str(e):
+            why = ("it holds Python objects, which pgi does not load; save a numeric array"
+                   if npy else "not a numpy .npy file")  # fmt: skip
+        else:
+            why = one_line(lines[0]) if lines else "not a numpy .npy file"
         val.fail(p, f"cannot read {file} as a .npy array: {why}")
     if not isinstance(a, np.ndarray):
         val.fail(p, f"{file}: expected one array, got {type(a).__name__}")
