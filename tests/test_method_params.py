@@ -106,3 +106,8 @@ def test_memory_bound_follows_the_machine(monkeypatch):
     monkeypatch.setattr(params, "physical_memory", lambda: 2**30)  # 1 GiB: 1e6 paths do not
     with pytest.raises(PgiError, match="more than half this machine's 1 GiB"):
         params.MethodParams("pt", {}, ()).paths_fit_in_memory("spp_per_wave", 10**6)
+    # lt's default batch under an spp budget is a whole number of paths per pixel: the film's
+    # size sets it, and the message says so (it named light_paths alone)
+    with pytest.raises(PgiError, match="lower method.light_paths or the film's size$"):
+        get_method("lt")(load_small("cbox", 1024, 1024), seed=0, threads=1, params={},
+                         spp_budget=1)  # fmt: skip
