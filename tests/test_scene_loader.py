@@ -482,6 +482,21 @@ def test_a_voxel_too_dense_to_track_is_an_error(tmp_path):
     expect_error(path, "media.smoke", "1.25e\\+04 optical depths across")
 
 
+@pytest.mark.parametrize("scale, ok", [(1e-9, False), (5e-8, True), (3e11, True), (1e13, False)])
+def test_scenes_beyond_the_checked_sizes_are_refused(tmp_path, scale, ok):
+    """cbox-fog scaled whole rendered wrong in every method at 3.5e-9 and 3.5e13 units across
+    (found by a review); the loader keeps sizes from 1e-7 to 1e12 (here 3 x scale)."""
+    doc = edit()
+    for shape in doc["shapes"]:
+        shape["transform"] = [*shape.get("transform", []), {"scale": scale}]
+    if ok:
+        load_scene(write(tmp_path, doc))
+    else:
+        expect_error(
+            write(tmp_path, doc), "shapes", "the shapes span .* units; .* 1e-07 to 1e\\+12"
+        )
+
+
 def test_a_rotated_grid_is_refused_on_load(tmp_path):
     """Mitsuba supports only axis-aligned grids: `pgi validate` says so, not the reference."""
     turn = [{"rotate": {"axis": [0, 0, 1], "angle": 30}}]
