@@ -57,7 +57,9 @@ except WorkflowError as e:
     if not isinstance(why, jsonschema.ValidationError):
         raise
     key = "".join(f"[{k}]" if isinstance(k, int) else f".{k}" for k in why.absolute_path)
-    hint = number_as_text_hint(why.instance) if why.validator == "type" else ""
+    hint = ""
+    if why.validator == "type":  # a number that arrived as text (YAML 1.1)?
+        hint = number_as_text_hint(why.instance, why.validator_value)
     sys.exit(f"config ({CONFIG_FILES}): {key.lstrip('.') or 'top level'}: {why.message}{hint}")
 
 try:

@@ -359,6 +359,25 @@ def test_an_emitter_a_medium_boundary_crosses_is_refused(tmp_path):
     assert cli.main(["render", str(tmp_path), "--method", "pt", *lit, "-o", str(out)]) == 0
     unlit = load_scene(tmp_path / "scene.yaml")  # the ceiling's lamp lies outside the fog
     emission_media(build_native_scene(unlit), unlit)
+    # The camera's fog fills the room (no shape names it) and a small smoke cube sits between
+    # a lamp corner and the camera: no boundary crosses the lamp. Random probes from that
+    # corner missed the cube and said vacuum (found by a review); its route to the camera
+    # decides: through the cube, fog on the lamp's side of it.
+    (tmp_path / "cube.yaml").write_text(textwrap.dedent(f"""\
+        include: {find_scene_file("cbox").parent / "box.yaml"}
+        camera: {{origin: [0, 0, 3.9], target: [0, 0, 0], up: [0, 1, 0], fov: 39.3,
+                 medium: fog}}
+        media:
+          fog: {{type: homogeneous, sigma_t: 0.05, albedo: 0.8}}
+          smoke: {{type: homogeneous, sigma_t: 1.0, albedo: 0.8}}
+        materials: {{boundary: {{type: "null"}}}}
+        shapes:
+          - {{name: smokebox, type: cube, material: boundary, interior: smoke, exterior: fog,
+              transform: [{{scale: 0.06}}, {{translate: [0.175, 0.686, 1.31]}}]}}
+        """))  # fmt: skip
+    for seed in range(5):
+        cube = load_scene(tmp_path / "cube.yaml")
+        emission_media(build_native_scene(cube), cube, seed)
     shipped = sorted(p.parent.name for p in find_scene_file("cbox").parents[1].glob("*/scene.yaml"))
     for name in shipped:
         scene = load_small(name, 8, 8)

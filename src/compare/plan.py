@@ -43,9 +43,10 @@ def check_config_files(files: list[Path]) -> None:
             raise PlanError(str(e)) from None
 
 
-def number_as_text_hint(value: Any) -> str:
-    """For a schema's type error: why a number may have arrived as text. The workflow reads
-    configs as YAML 1.1, where 5e-1 and 1.0e3 are strings (scene files read them as numbers)."""
+def number_as_text_hint(value: Any, expected: Any = "number") -> str:
+    """For a schema's type error (``expected``: the type it wanted): why a number may have
+    arrived as text. The workflow reads configs as YAML 1.1, where 5e-1 and 1.0e3 are strings
+    (scene files read them as numbers). No hint where the number would not do either."""
     from renderer.scene.loader import parse_yaml_value
 
     if not isinstance(value, str):
@@ -56,8 +57,12 @@ def number_as_text_hint(value: Any) -> str:
         return ""
     if isinstance(number, bool) or not isinstance(number, int | float):
         return ""
+    if not math.isfinite(number):
+        return ""
     if isinstance(number, float) and number.is_integer() and abs(number) < 2**53:
         number = int(number)  # 1.0e3 -> 1000, which fits an integer key too
+    if expected == "integer" and not isinstance(number, int):
+        return ""
     return (
         f" (the workflow reads configs as YAML 1.1, where {value} is text, not a number: "
         f"write {number!r})"
@@ -465,23 +470,33 @@ def make_plan(
 
 
 def check_method_values(plan: Plan) -> None:
-    """Method parameters' values, as each render will get them (a study's and a scene's
-    `set`, a variant's, then `method_args`): the method is built on its scene and dropped
-    (milliseconds; Mitsuba's takes a second or two), so a value out of range
-    (`method.spp_per_wave=0`) stops the plan, not a render after the references have run."""
+    """Every render as it will run, before any job: each method is built on its scene with
+    the settings it will get (a study's and a scene's `set`, a variant's, then
+    `method_args`) and dropped, so that a parameter out of range (`method.spp_per_wave=0`)
+    or a scene a method refuses (an emitter a medium's boundary crosses, for the light-path
+    methods) stops the plan, not the renders after the references have run. Building takes
+    milliseconds (pm's photon buffers a few tenths of a second); Mitsuba, whose warm-up
+    render can take a minute, only has its parameters read."""
     from renderer.cli import split_sets
     from renderer.methods import get_method, method_ids
 
+    scenes: dict[tuple[str, tuple[str, ...]], Any] = {}
     for name, spec in plan.scenes.items():
         for label in plan.methods:
             args = plan.render_args(name, label)
             method = args[1]
+            if method not in method_ids():
+                continue
             sets = [args[i + 1] for i, a in enumerate(args) if a == "--set"]
             overrides, params = split_sets(sets)
-            if not params or method not in method_ids():
-                continue
+            cls = get_method(method)
             try:
-                scene = load_scene(spec.path / "scene.yaml", overrides)
-                get_method(method)(scene, seed=0, threads=1, params=params, spp_budget=None)
+                key = (name, tuple(overrides))
+                if key not in scenes:
+                    scenes[key] = load_scene(spec.path / "scene.yaml", overrides)
+                if hasattr(cls, "check_parameters"):
+                    cls.check_parameters(scenes[key], params)
+                else:
+                    cls(scenes[key], seed=0, threads=1, params=params, spp_budget=None)
             except PgiError as e:
                 raise PlanError(f"{label} on scene '{name}': {e}") from None

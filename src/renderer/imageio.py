@@ -7,6 +7,7 @@ import json
 import os
 import sys
 import tempfile
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -50,15 +51,21 @@ def read_exr_and_channels(path: str | Path) -> tuple[np.ndarray, int]:
     return np.ascontiguousarray(pixels, dtype=np.float32), channels
 
 
+# File descriptor 2 belongs to the whole process: one capture at a time, or a second one
+# would restore the first one's file as stderr.
+_STDERR_LOCK = threading.Lock()
+
+
 @contextlib.contextmanager
 def _stderr_captured() -> Iterator[list[str]]:
     """What C libraries write to the process's stderr meanwhile (OpenEXR prints its decoding
     errors there itself), kept out of the terminal and handed over in the list on exit: a
-    failed read is one line of ours."""
+    failed read is one line of ours. Other threads' stderr output meanwhile is caught too;
+    no caller reads images while another thread writes there."""
     said: list[str] = []
-    sys.stderr.flush()
-    saved = os.dup(2)
-    with tempfile.TemporaryFile() as sink:
+    with _STDERR_LOCK, tempfile.TemporaryFile() as sink:
+        sys.stderr.flush()
+        saved = os.dup(2)
         os.dup2(sink.fileno(), 2)
         try:
             yield said

@@ -160,21 +160,21 @@ def emission_media(native: NativeScene, scene: Scene, seed: int = 0):
         )
         # Each triangle starts its paths in one medium: one that a medium's boundary crosses
         # would start some in the wrong one. Its corners (pulled 1 % towards the centroid)
-        # tell, for a boundary that cuts across it; with probes of their own, so that the
-        # centroid's stay those of earlier versions.
+        # and its centroid are compared, for a boundary that cuts across it, each by the
+        # medium its route to the camera decides where it does (random probes miss small
+        # shapes), with probes of their own, so that the centroid's above stay as they were.
+        # An emitter that names media itself is a boundary: its paths take its sides.
         corner_rng = np.random.default_rng([seed, 1])
+        checked = ~np.isin(emitting, surfaces.named_ids)
+        ref = _checked_media(surfaces, scene, centroid, normal, extent, camera_medium, corner_rng)
         for k in range(3):
             corner = t[:, k] + 0.01 * (centroid - t[:, k])
-            found = _surface_media(surfaces, scene, corner, normal, extent, camera_medium,
+            found = _checked_media(surfaces, scene, corner, normal, extent, camera_medium,
                                    corner_rng)  # fmt: skip
-            # (an emitter that names media itself is a boundary: its paths take its sides)
-            split = np.flatnonzero(
-                (found != per_triangle[emitting]) & ~np.isin(emitting, surfaces.named_ids)
-            )
+            split = np.flatnonzero((found != ref) & checked)
             if len(split):
                 first = split[0]
-                media = (per_triangle[emitting[first]], found[first])
-                _refuse_split_emitter(native, scene, emitting[first], media)
+                _refuse_split_emitter(native, scene, emitting[first], (ref[first], found[first]))
     per_light = np.full(lights_area + len(scene.lights), -1, np.int32)
     for i, pos in enumerate(point_positions):
         if pos is None:
@@ -223,6 +223,28 @@ def _surface_media(
     if camera_medium is not None:
         outcome, _ = _camera_routes(surfaces, scene, start)
         media[_route_shares_camera_medium(outcome)] = camera_medium
+    return media
+
+
+def _checked_media(
+    surfaces: _ProbeSurfaces,
+    scene: Scene,
+    points: np.ndarray,
+    normal: np.ndarray,
+    extent: float,
+    camera_medium: int | None,
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """The medium in front of each point of an emitter, for comparing points of one triangle:
+    with the camera in a medium, the one its straight route to the camera decides (the
+    camera's, or that on the point's side of the first shape naming a medium it crosses);
+    otherwise, and where an opaque surface naming none comes first, the probes' majority."""
+    media = _surface_media(surfaces, scene, points, normal, extent, None, rng)
+    if camera_medium is not None:
+        outcome, side = _camera_routes(surfaces, scene, points + normal * 1e-4 * extent)
+        media[_route_shares_camera_medium(outcome)] = camera_medium
+        crossed = outcome == _CROSSES_NAMED
+        media[crossed] = side[crossed]
     return media
 
 

@@ -36,8 +36,7 @@ class MitsubaVolpath:
     def __init__(
         self, scene: Scene, *, seed: int, threads: int, params: dict, spp_budget: int | None = None
     ) -> None:
-        p = MethodParams(self.id, params, self.parameters)
-        spp = p.spp_per_iteration("spp_per_iteration", default_spp(scene, spp_budget), spp_budget)
+        spp = self.check_parameters(scene, params, spp_budget)
         self.mi = import_mitsuba()
         set_threads(threads)
         self.scene = load_mitsuba_scene(scene)
@@ -49,6 +48,13 @@ class MitsubaVolpath:
         self.sum = np.zeros((scene.film.height, scene.film.width, 3))
         self.iterations = 0
         self.nonfinite = 0
+
+    @classmethod
+    def check_parameters(cls, scene: Scene, params: dict, spp_budget: int | None = None) -> int:
+        """The samples per iteration the parameters ask for, checked, without loading Mitsuba
+        (whose warm-up render can take a minute): what a plan checks before any job."""
+        p = MethodParams(cls.id, params, cls.parameters)
+        return p.spp_per_iteration("spp_per_iteration", default_spp(scene, spp_budget), spp_budget)
 
     def _render(self, seed: int) -> np.ndarray:
         """One render of spp_per_iteration samples, finished (read back into numpy)."""

@@ -192,13 +192,7 @@ def _read_yaml(path: Path) -> dict:
         raise PgiError(
             f"{path}: not a UTF-8 text file (byte {e.start}: {e.reason}); scene files are YAML"
         ) from None
-    try:
-        doc = _load_yaml(text)
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        where = f"{path}:{mark.line + 1}" if mark else str(path)
-        problem = getattr(e, "problem", None) or str(e).splitlines()[0]
-        raise PgiError(f"{where}: invalid YAML: {problem}") from e
+    doc = _parse_yaml_file(path, text)
     if doc is None:
         raise PgiError(f"{path}: the file is empty; a scene file is a mapping of scene keys")
     if not isinstance(doc, dict):
@@ -206,18 +200,26 @@ def _read_yaml(path: Path) -> dict:
     return doc
 
 
-def check_yaml_file(path: Path) -> None:
-    """Reads a YAML file as scene files are read, for files another reader loads (workflow
-    configs): a key given twice is a PgiError naming the line, not the last one silently kept."""
+def _parse_yaml_file(path: Path, text: str) -> Any:
+    """The document in ``text`` (read from ``path``); invalid YAML is a PgiError naming the
+    file and the line."""
     try:
-        _load_yaml(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError):
-        return  # that reader says so itself
+        return _load_yaml(text)
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None)
         where = f"{path}:{mark.line + 1}" if mark else str(path)
         problem = getattr(e, "problem", None) or str(e).splitlines()[0]
         raise PgiError(f"{where}: invalid YAML: {problem}") from None
+
+
+def check_yaml_file(path: Path) -> None:
+    """Reads a YAML file as scene files are read, for files another reader loads (workflow
+    configs): a key given twice is a PgiError naming the line, not the last one silently kept."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return  # that reader says so itself
+    _parse_yaml_file(path, text)
 
 
 # --------------------------------------------------------------------------- key paths, origins

@@ -47,18 +47,23 @@ FAR_CLIP = 1e6  # x reach
 MITSUBA_RAY_EPSILON = 2.0**-24 * 1500
 # Largest ratio of that offset to the scene's extent without a warning. cbox-fog scaled
 # down, its fog scaled up (pt unchanged at every scale): Mitsuba's image mean was right at a
-# ratio of 1.6e-3 (scale 1e-2), 22 % dark at 3.2e-3, 11 % dark at 1.6e-2, 43 % bright at 0.16
-# and black at 1.6. The shipped scenes have 7-8e-5.
+# ratio of 2.6e-3 (scale 1e-2), 22 % dark at 5.2e-3, 11 % dark at 2.6e-2, 43 % bright at 0.26
+# and black at 2.6 (the extent of the shapes and grid boxes, where rays leave surfaces; not
+# of a distant camera or light). The shipped scenes have 5-8e-5.
 MAX_MITSUBA_OFFSET_RATIO = 1e-3
 
 
-def _scene_points(scene: Scene) -> np.ndarray:
-    """Every triangle vertex, grid-box corner, light position and the camera's origin."""
+def _scene_points(scene: Scene, lights_and_camera: bool = True) -> np.ndarray:
+    """Every triangle vertex and grid-box corner; with ``lights_and_camera``, also every light
+    position and the camera's origin."""
     cube = np.array([[x, y, z, 1.0] for x in (0, 1) for y in (0, 1) for z in (0, 1)])
     points = [s.vertices for s in scene.shapes]
     points += [(cube @ m.to_world.T)[:, :3] for m in scene.media.values() if m.to_world is not None]
-    points += [np.reshape(li.position, (1, 3)) for li in scene.lights if hasattr(li, "position")]
-    return np.concatenate([*points, np.reshape(scene.camera.origin, (1, 3))])
+    if lights_and_camera:
+        placed = [li for li in scene.lights if hasattr(li, "position")]
+        points += [np.reshape(li.position, (1, 3)) for li in placed]
+        points.append(np.reshape(scene.camera.origin, (1, 3)))
+    return np.concatenate(points)
 
 
 def camera_reach(scene: Scene) -> float:
@@ -72,7 +77,7 @@ def check_mitsuba_scale(scene: Scene) -> None:
     fixed ray offset is not small against it: its image may be wrong with no error of its
     own. A warning, not a refusal: a small absorber seen through null boundaries alone
     renders right (test_camera_rays_in_a_medium_reach_any_scale)."""
-    points = _scene_points(scene)
+    points = _scene_points(scene, lights_and_camera=False)  # where rays leave surfaces
     extent = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
     reach = float(np.abs(points).max())
     offset = (1 + reach) * MITSUBA_RAY_EPSILON
@@ -81,7 +86,7 @@ def check_mitsuba_scale(scene: Scene) -> None:
             f"pgi: warning: {scene.path}: the scene spans {extent:.3g} units and reaches "
             f"{reach:.3g} from the origin, and Mitsuba offsets its rays from surfaces by "
             f"{offset:.2g} units, over {MAX_MITSUBA_OFFSET_RATIO:g} of the scene's size: a "
-            "scaled-down cbox-fog came out 11-43 % wrong from 3x that; scale the scene up (and "
+            "scaled-down cbox-fog came out 11-43 % wrong from 5x that; scale the scene up (and "
             "sigma_t down by the same factor) or move it towards the origin",
             file=sys.stderr,
         )
