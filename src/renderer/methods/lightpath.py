@@ -166,11 +166,12 @@ def emission_media(native: NativeScene, scene: Scene, seed: int = 0):
         # An emitter that names media itself is a boundary: its paths take its sides.
         corner_rng = np.random.default_rng([seed, 1])
         checked = ~np.isin(emitting, surfaces.named_ids)
-        ref = _checked_media(surfaces, scene, centroid, normal, extent, camera_medium, corner_rng)
+        ref = _surface_media(surfaces, scene, centroid, normal, extent, camera_medium,
+                             corner_rng, route_decides=True)  # fmt: skip
         for k in range(3):
             corner = t[:, k] + 0.01 * (centroid - t[:, k])
-            found = _checked_media(surfaces, scene, corner, normal, extent, camera_medium,
-                                   corner_rng)  # fmt: skip
+            found = _surface_media(surfaces, scene, corner, normal, extent, camera_medium,
+                                   corner_rng, route_decides=True)  # fmt: skip
             split = np.flatnonzero((found != ref) & checked)
             if len(split):
                 first = split[0]
@@ -207,10 +208,13 @@ def _surface_media(
     extent: float,
     camera_medium: int | None,
     rng: np.random.Generator,
+    route_decides: bool = False,
 ) -> np.ndarray:
     """The medium on the front side of each point of an emitting surface: the majority of
     probes into the front hemisphere, or the camera's medium where the straight route to the
-    camera crosses no shape that names a medium."""
+    camera crosses no shape that names a medium. With ``route_decides`` (comparing points of
+    one triangle: random probes can miss a small shape), also the medium on the point's side
+    of the first shape naming one that this route crosses."""
     start = points + normal * 1e-4 * extent
     votes = []
     for _ in range(_PROBE_DIRECTIONS):
@@ -221,30 +225,11 @@ def _surface_media(
         votes.append(locate_media(surfaces, start, d))
     media = _majority(np.stack(votes))
     if camera_medium is not None:
-        outcome, _ = _camera_routes(surfaces, scene, start)
+        outcome, side = _camera_routes(surfaces, scene, start)
         media[_route_shares_camera_medium(outcome)] = camera_medium
-    return media
-
-
-def _checked_media(
-    surfaces: _ProbeSurfaces,
-    scene: Scene,
-    points: np.ndarray,
-    normal: np.ndarray,
-    extent: float,
-    camera_medium: int | None,
-    rng: np.random.Generator,
-) -> np.ndarray:
-    """The medium in front of each point of an emitter, for comparing points of one triangle:
-    with the camera in a medium, the one its straight route to the camera decides (the
-    camera's, or that on the point's side of the first shape naming a medium it crosses);
-    otherwise, and where an opaque surface naming none comes first, the probes' majority."""
-    media = _surface_media(surfaces, scene, points, normal, extent, None, rng)
-    if camera_medium is not None:
-        outcome, side = _camera_routes(surfaces, scene, points + normal * 1e-4 * extent)
-        media[_route_shares_camera_medium(outcome)] = camera_medium
-        crossed = outcome == _CROSSES_NAMED
-        media[crossed] = side[crossed]
+        if route_decides:
+            crossed = outcome == _CROSSES_NAMED
+            media[crossed] = side[crossed]
     return media
 
 
