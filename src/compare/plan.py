@@ -213,14 +213,30 @@ def code_fingerprints(pgi: tuple[str, ...]) -> dict[str, str]:
     return {"render": str(code["render"]), "reference": str(code["reference"])}
 
 
-def check_scene(spec: SceneSpec, extra: tuple[str, ...] = (), where: str = "scenes") -> None:
+# Scenes the plan has loaded, by (scene file, overrides): each is checked, then built with
+# every method, from one load.
+_Loaded = dict[tuple[Path, tuple[str, ...]], Any]
+
+
+def _load_once(loaded: _Loaded, path: Path, overrides: tuple[str, ...]) -> Any:
+    if (path, overrides) not in loaded:
+        loaded[path, overrides] = load_scene(path, overrides)
+    return loaded[path, overrides]
+
+
+def check_scene(
+    spec: SceneSpec,
+    extra: tuple[str, ...] = (),
+    where: str = "scenes",
+    loaded: _Loaded | None = None,
+) -> None:
     """Load a scene with the study's overrides (and a variant's, ``extra``): a misspelt `set`
     key stops the plan, not the first render (after the references may have run for minutes)."""
     from renderer.engine import march_step  # the native core: only when scenes are checked
 
     path = spec.path / "scene.yaml"
     try:
-        scene = load_scene(path, spec.set + extra)
+        scene = _load_once({} if loaded is None else loaded, path, spec.set + extra)
         for medium in scene.media.values():  # the step is checked when the core is built
             if medium.type == "grid":
                 march_step(medium, scene.integrator.march_step, str(path))
@@ -344,6 +360,7 @@ def make_plan(
     # command may read them its own way.
     check_here = check_scenes and str(config.get("pgi", "auto")) == "auto"
     default_spp = int(ref.get("spp", 1024))
+    loaded: _Loaded = {}  # each scene read once for all the checks below
 
     scenes: dict[str, SceneSpec] = {}
     for item in config["scenes"]:
@@ -365,7 +382,7 @@ def make_plan(
             reference_spp=int(entry.get("reference_spp", default_spp)),
         )
         if check_here:
-            check_scene(scenes[name])
+            check_scene(scenes[name], loaded=loaded)
 
     wanted = config["methods"]
     exclude = set(config.get("exclude_methods") or ())
@@ -386,7 +403,7 @@ def make_plan(
             except PgiError as e:
                 raise PlanError(f"variants: '{label}': {e}") from e
             for spec in scenes.values() if scene_keys else ():
-                check_scene(spec, scene_keys, f"variants: '{label}' on scene")
+                check_scene(spec, scene_keys, f"variants: '{label}' on scene", loaded)
     if wanted == "all":
         methods = [m for m in avail if m not in exclude] + labels
         if not methods:
@@ -465,11 +482,11 @@ def make_plan(
         code=code_fingerprints(pgi) if check_methods else {},
     )
     if check_here:
-        check_method_values(plan)
+        check_method_values(plan, loaded)
     return plan
 
 
-def check_method_values(plan: Plan) -> None:
+def check_method_values(plan: Plan, loaded: _Loaded | None = None) -> None:
     """Every render as it will run, before any job: each method is built on its scene with
     the settings it will get (a study's and a scene's `set`, a variant's, then
     `method_args`) and dropped, so that a parameter out of range (`method.spp_per_wave=0`)
@@ -480,7 +497,7 @@ def check_method_values(plan: Plan) -> None:
     from renderer.cli import split_sets
     from renderer.methods import get_method, method_ids
 
-    scenes: dict[tuple[str, tuple[str, ...]], Any] = {}
+    loaded = {} if loaded is None else loaded
     for name, spec in plan.scenes.items():
         for label in plan.methods:
             args = plan.render_args(name, label)
@@ -491,12 +508,10 @@ def check_method_values(plan: Plan) -> None:
             overrides, params = split_sets(sets)
             cls = get_method(method)
             try:
-                key = (name, tuple(overrides))
-                if key not in scenes:
-                    scenes[key] = load_scene(spec.path / "scene.yaml", overrides)
+                scene = _load_once(loaded, spec.path / "scene.yaml", tuple(overrides))
                 if hasattr(cls, "check_parameters"):
-                    cls.check_parameters(scenes[key], params)
+                    cls.check_parameters(scene, params)
                 else:
-                    cls(scenes[key], seed=0, threads=1, params=params, spp_budget=None)
+                    cls(scene, seed=0, threads=1, params=params, spp_budget=None)
             except PgiError as e:
                 raise PlanError(f"{label} on scene '{name}': {e}") from None
