@@ -268,6 +268,16 @@ def test_images_that_are_not_whole_exr_files_are_refused(tmp_path):
     assert r.stdout == "", r.stdout
     r = pgi("compare", str(tmp_path / "grey.exr"), str(tmp_path / "grey.exr"), "--json")
     assert r.returncode == 0 and json.loads(r.stdout)["mse"] == 0, r.stderr
+    # Channels are matched by name: an XYZ image is not compared as if it were RGB.
+    xyz = oiio.ImageSpec(64, 64, 3, oiio.FLOAT)
+    xyz.channelnames = ("X", "Y", "Z")
+    xyz_image = oiio.ImageBuf(xyz)
+    xyz_image.set_pixels(
+        oiio.ROI(0, 64, 0, 64, 0, 1, 0, 3), rng.uniform(size=(64, 64, 3)).astype("f4")
+    )
+    xyz_image.write(str(tmp_path / "xyz.exr"))
+    r = pgi("compare", str(tmp_path / "xyz.exr"), str(tmp_path / "ref.exr"))
+    assert r.returncode == 2 and "expected channels R, G, B" in r.stderr and "X, Y, Z" in r.stderr
 
 
 def test_interrupt_inside_mitsuba_exits_130(monkeypatch, capsys):

@@ -41,13 +41,16 @@ def read_exr_and_channels(path: str | Path) -> tuple[np.ndarray, int]:
         why = _first_line(buf.geterror()) or "unexpected layout"
         detail = one_line(_first_line("".join(library_said)).replace(f"{path}: ", ""))
         raise PgiError(f"{path}: cannot read pixels: {why}" + (f" ({detail})" if detail else ""))
+    names = tuple(buf.spec().channelnames)
     channels = pixels.shape[2]
     if channels == 1:
         pixels = np.repeat(pixels, 3, axis=2)
-    elif channels >= 3:
+    elif names[:3] == ("R", "G", "B"):  # OpenImageIO puts R, G, B first when a file has them
         pixels = pixels[:, :, :3]
-    else:
-        raise PgiError(f"{path}: expected 1, 3 or 4 channels, found {channels}")
+    else:  # e.g. XYZ or spectral channels: not the linear RGB every metric assumes
+        raise PgiError(
+            f"{path}: expected channels R, G, B (or one grey channel), found {', '.join(names)}"
+        )
     return np.ascontiguousarray(pixels, dtype=np.float32), channels
 
 
