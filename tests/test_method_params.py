@@ -83,6 +83,7 @@ def test_sppm_takes_both_radii_without_its_default_scale():
         ("ppb", "light_paths", 10**8),
         ("ppb", "spp_per_iteration", 100_000),
         ("lt", "light_paths", 10**8),
+        ("mitsuba", "spp_per_iteration", 100_000),  # one LLVM wavefront holds them all
     ],
 )
 def test_batches_beyond_half_the_memory_are_refused_before_any_work(

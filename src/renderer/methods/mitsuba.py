@@ -54,7 +54,10 @@ class MitsubaVolpath:
         """The samples per iteration the parameters ask for, checked, without loading Mitsuba
         (whose warm-up render can take a minute): what a plan checks before any job."""
         p = MethodParams(cls.id, params, cls.parameters)
-        return p.spp_per_iteration("spp_per_iteration", default_spp(scene, spp_budget), spp_budget)
+        spp = p.spp_per_iteration("spp_per_iteration", default_spp(scene, spp_budget), spp_budget)
+        # Mitsuba's LLVM variant traces all of an iteration's samples as one wavefront.
+        p.camera_paths_fit_in_memory("spp_per_iteration", spp, scene.film)
+        return spp
 
     def _render(self, seed: int) -> np.ndarray:
         """One render of spp_per_iteration samples, finished (read back into numpy)."""
