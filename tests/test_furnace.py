@@ -168,8 +168,13 @@ def test_furnace(furnace, case):
 
 
 def test_furnace_detects_a_one_percent_bias(furnace):
-    """The test has power: the same renders scaled by 0.99 (a 1% energy loss) are rejected."""
-    images, _ = furnace("homogeneous-black-walls")
-    biased = images * 0.99
-    image_mean, image_se = stats.mean_and_se(biased.mean(axis=(1, 2)))
-    assert np.any(stats.t_p_value(image_mean, L, image_se, len(images) - 1) < LEVEL)
+    """The tests have power: the same renders scaled by 0.99 (a 1% energy loss) are rejected.
+    An energy loss would show in every case, so every case's image mean takes part. One case
+    alone was not enough: the image mean's standard error varies with the random stream, and
+    a change of stream alone made the most precise case miss the 1 % (its mean 0.3 % high)."""
+    p_values = []
+    for case in CASES:
+        images, _ = furnace(case)
+        image_mean, image_se = stats.mean_and_se((images * 0.99).mean(axis=(1, 2)))
+        p_values.append(stats.t_p_value(image_mean, L, image_se, len(images) - 1))
+    assert np.min(p_values) < LEVEL, np.min(p_values)

@@ -146,7 +146,8 @@ def test_grid_layout_matches_density_x_y_z(tmp_path):
 def test_exported_grid_medium_matches_ours_between_voxel_centres():
     """The medium Mitsuba gets from the exporter has our extinction everywhere, not only at
     voxel centres (where nearest-neighbour and trilinear filtering agree), with the medium's
-    `scale` applied once: sigma_t(x) = density(x) * sigma_t * scale."""
+    `scale` applied once: sigma_t(x) = density(x) * sigma_t * scale, and sigma_s(x) = albedo
+    times that, per channel."""
     scene = load_scene("fog-perlin", ["film.width=4", "film.height=4", "media.fog.scale=0.37"])
     fog = scene.media["fog"]
     shape = next(s for s in load_mitsuba_scene(scene).shapes() if s.interior_medium())
@@ -154,16 +155,22 @@ def test_exported_grid_medium_matches_ours_between_voxel_centres():
     local = np.random.default_rng(1).random((300, 3))
     world = local @ fog.to_world[:3, :3].T + fog.to_world[:3, 3]
     native = build_native_scene(scene)
-    want = native.core.density(0, np.ascontiguousarray(world)) * fog.sigma_t[0] * fog.scale
+    density = native.core.density(0, np.ascontiguousarray(world))[:, None]
+    want = density * np.asarray(fog.sigma_t) * fog.scale
     mei = mi.MediumInteraction3f()
-    got = []
+    got, got_scattering = [], []
     for p in world:  # one point at a time: works in scalar and vectorised variants alike
         mei.p = mi.Point3f(*(float(x) for x in p))
         mei.t = 1.0
-        sigma_t = medium.get_scattering_coefficients(mei)[2]
-        got.append(float(np.array(sigma_t).ravel()[0]))
+        sigma_s, _, sigma_t = medium.get_scattering_coefficients(mei)
+        got.append(np.array(sigma_t).ravel()[:3])
+        got_scattering.append(np.array(sigma_s).ravel()[:3])
     assert np.ptp(want) > 0.1 * want.max()  # the points sample a varying density
+    assert max(fog.albedo) < 1  # so sigma_s differs from sigma_t
     np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-6 * want.max())
+    np.testing.assert_allclose(
+        got_scattering, want * np.asarray(fog.albedo), rtol=1e-5, atol=1e-6 * want.max()
+    )
 
 
 @pytest.mark.parametrize("name", SHIPPED)

@@ -158,8 +158,16 @@ def test_unknown_and_bad_parameters_are_errors(scene):
         # Mitsuba's max_depth with beams and surface photons: direct light and one bounce (an
         # event too many or too few changes pt's mean by +17 % or -25 % here)
         ("cbox-fog", {"spp_per_iteration": 16}, ("integrator.max_depth=3",), 128),
+        # extinction that differs per channel: a beam's transmittance is divided by the
+        # probability its hero channel sampled it (without it blue was +158 %, red -7 %)
+        (
+            "cbox-fog",
+            {"spp_per_iteration": 16},
+            ("media.fog.sigma_t=[0.2, 1, 3]", "media.fog.albedo=[0.9, 0.5, 0.7]"),
+            128,
+        ),
     ],
-    ids=["grid-medium", "path-traced-surfaces", "sun-through-windows", "max-depth-3"],
+    ids=["grid-medium", "path-traced-surfaces", "sun-through-windows", "max-depth-3", "chromatic"],
 )
 def test_variants_image_mean_matches_pt(name, params, overrides, iterations):
     scene = load_small(name, RES, RES, overrides)

@@ -158,23 +158,24 @@ def test_the_slower_kernel_sets_the_expected_slope():
 
 def test_each_iteration_gathers_with_its_scheduled_radii():
     """What the kernels use, not what stats report: iteration i of sppm is pm's iteration i run
-    with fixed radii r_1 i^((alpha - 1) / 2) (same seed, so the same photons and camera paths).
-    A schedule that stopped shrinking, or radii that never reached the kernels, differ here."""
+    with fixed radii r_1 i^((alpha - 1) / 2) (same seed, so the same photons and camera paths),
+    each radius with its own alpha. A schedule that stopped shrinking, radii that never reached
+    the kernels, or a volume radius on the surface's schedule differ here."""
     scene = load_small("cbox-fog", 8, 8)
     common = {"photons": 1024, "spp_per_iteration": 4}
     sppm = StochasticProgressivePhotonMapping(
         scene, seed=5, threads=2,
-        params={**common, "radius": 0.2, "volume_radius": 0.3, "alpha": 0.5},
+        params={**common, "radius": 0.2, "volume_radius": 0.3, "alpha": 0.5, "volume_alpha": 0.8},
     )  # fmt: skip
     previous = np.zeros_like(sppm.image())
     for i in range(4):
         sppm.run_iteration(i)
         total = sppm.image() * (i + 1)
         own, previous = total - previous, total
-        shrink = (i + 1) ** (-0.5 / 2)
+        surface, volume = 0.2 * (i + 1) ** (-0.5 / 2), 0.3 * (i + 1) ** (-0.2 / 2)
         pm = PhotonMapping(
             scene, seed=5, threads=2,
-            params={**common, "radius": 0.2 * shrink, "volume_radius": 0.3 * shrink},
+            params={**common, "radius": surface, "volume_radius": volume},
         )  # fmt: skip
         pm.run_iteration(i)
         assert np.allclose(own, pm.image(), rtol=1e-9, atol=1e-12), i

@@ -518,9 +518,11 @@ def test_translation_invariance_in_a_dense_medium(translated_renders):
 
 
 def test_translation_invariance_can_fail(translated_renders):
-    """The check has power: the moved scene's image times 0.97 fails it."""
+    """The check has power: the moved scene's image times 0.95 fails it (the offsets it guards
+    made the moved cube 8-13 % darker). At 0.97 a change of random stream alone took pm's
+    p-value to the limit; here pm's block chi-square gives p 5.6e-9 at 0.97, 1.8e-27 at 0.95."""
     method, base, moved = translated_renders
-    agree, why = same_image(base, Estimate(moved.samples * 0.97))
+    agree, why = same_image(base, Estimate(moved.samples * 0.95))
     assert not agree, (method, why)
 
 
