@@ -201,3 +201,8 @@ def test_reference_error_statistics() -> None:
     rel_sd = np.sqrt(2 / a.size)
     assert est == pytest.approx(true, rel=5 * np.sqrt(2) * rel_sd)
     assert est == pytest.approx(s * s / 2, rel=5 * rel_sd)
+
+
+def test_reference_ok_is_the_factor_or_more() -> None:
+    assert m.reference_ok(1.0, 0.1) and not m.reference_ok(0.99, 0.1)
+    assert m.reference_ok(0.5, 0.1, factor=5) and not m.reference_ok(0.5, 0.1, factor=6)

@@ -521,3 +521,143 @@ def test_methods_welchs_test_on_log_errors_cannot_separate_from_the_best_are_tie
     # cbox-fog at 1 s: pt against sppm), though the difference of the means would.
     assert not T.tied(0.192, 0.027, 2, 0.00498, 8.1e-5, 2)
     assert T.tied(1.0, 0.0, 2, 1.0, 0.0, 2) and not T.tied(1.0, 0.0, 2, 1.001, 0.0, 2)
+
+
+# --------------------------------------------------------------------------- wiring of the tables
+# Each of these caught a bug injected into a copy of the code that the tests above let pass.
+
+
+def test_compare_run_uses_the_configured_reference_factor(tmp_path: Path) -> None:
+    write_exr(tmp_path / "ref.exr", np.ones((4, 4, 3)))
+    write_json(tmp_path / "ref.json", {"ref_relmse": 0.001, "ref_mse": 0.001})
+    write_exr(tmp_path / "run.t1.exr", np.full((4, 4, 3), 1.5))  # relMSE 0.25 / 1.01: 247x
+    write_json(tmp_path / "run.t1.json", {"render_seconds": 1.0, "threads": 2})
+    args = ([tmp_path / "run.t1.exr"], [1.0], tmp_path / "ref.exr", tmp_path / "ref.json")
+    kw = dict(scene="s", method="pt", seed=1, threads=2)
+    assert compare_run(*args, tmp_path / "a.csv", **kw).ref_ok.tolist() == [True]
+    strict = compare_run(*args, tmp_path / "b.csv", **kw, ref_quality_factor=1000)
+    assert strict.ref_ok.tolist() == [False]
+
+
+def _summary(rows: list[tuple[str, float, float, int]]) -> pd.DataFrame:
+    return pd.DataFrame(
+        [
+            {"scene": "s", "budget": 1.0, "method": m, "relmse_mean": mean, "relmse_std": std,
+             "n_seeds": n, "render_seconds_mean": 1.0, "ref_ok": True}
+            for m, mean, std, n in rows
+        ]
+    )  # fmt: skip
+
+
+def test_a_method_with_one_seed_can_win() -> None:
+    best = T.best_methods(_summary([("pt", 1.0, 0.1, 2), ("pm", 0.5, np.nan, 1)]), "relmse")
+    assert best.method.tolist() == ["pm"] and best.tied_with.tolist() == [""]
+
+
+def test_one_flagged_seed_flags_its_cell() -> None:
+    runs = _runs()
+    runs["ref_ok"] = True
+    runs.loc[(runs.method == "pt") & (runs.budget == 1.0) & (runs.seed == 1), "ref_ok"] = False
+    s = T.summarize(runs).set_index(["method", "budget"])
+    assert not s.loc[("pt", 1.0), "ref_ok"] and s.loc[("pt", 2.0), "ref_ok"]
+
+
+def test_slopes_are_fitted_on_render_time_not_on_the_budget() -> None:
+    runs = _runs()
+    runs["render_seconds"] = runs.budget.map({1.0: 1.5, 2.0: 2.0, 4.0: 4.0})
+    runs["relmse"] = runs.seed / runs.render_seconds  # exactly 1 / t per seed
+    conv = T.convergence_table(runs, ["relmse"]).set_index("method")
+    assert conv.loc["pt", "slope"] == pytest.approx(-1.0)
+
+
+def test_the_error_target_is_the_baselines_at_its_largest_budget(tmp_path: Path) -> None:
+    tte = T.write_tables(_runs(), tmp_path, metric="relmse", baseline="pt")["time_to_error"]
+    assert tte.target.tolist() == pytest.approx([1.15 / 4] * 2)
+    assert (tte.target_from == "pt at 4 s").all()
+
+
+def test_budget_columns_sit_over_their_own_cells(tmp_path: Path) -> None:
+    runs = _runs()
+    runs["budget"] = runs.budget.replace({4.0: 16.0})  # "16 s" sorts before "2 s" as text
+    runs["render_seconds"] = runs.budget
+    T.write_tables(runs, tmp_path, metric="relmse", baseline="pt", methods=["pt", "lt"])
+    md = (tmp_path / "overview.md").read_text().splitlines()
+    assert (
+        next(row for row in md if row.startswith("| scene"))
+        == "| scene | method | 1 s | 2 s | 16 s |"
+    )
+    pt = next(row for row in md if row.startswith("| s | pt |"))
+    assert pt.split(" | ")[2] == "**1.15 ± 0.071**"  # the 1 s cell under the 1 s header
+    html = (tmp_path / "overview.html").read_text()
+    assert re.findall(r"<th>([\d.]+ s)</th>", html) == ["1 s", "2 s", "16 s"]
+
+
+def test_benchmarks_join_the_run_of_their_own_seed(tmp_path: Path) -> None:
+    csv = tmp_path / "m.csv"
+    _runs().assign(ref_ok=True).to_csv(csv, index=False)
+    bench = {}
+    for seed, seconds in ((1, 10.0), (2, 20.0)):
+        tsv = tmp_path / f"s{seed}.tsv"
+        tsv.write_text(f"s\tmax_rss\n{seconds}\t{seconds * 10}\n")
+        bench[("s", "pt", seed)] = tsv
+    runs = T.load_runs([csv], bench)
+    pt = runs[runs.method == "pt"].groupby("seed").wall_seconds.first()
+    assert pt.to_dict() == {1: 10.0, 2: 20.0}
+
+
+def test_method_stats_are_those_of_the_largest_budget() -> None:
+    st = T.stats_table(_runs())
+    assert (st.budget == 4.0).all() and (st.iterations == 40.0).all()
+
+
+def test_auto_exposure_maps_the_mean_to_middle_grey() -> None:
+    assert I.auto_exposure(np.full((4, 4, 3), 0.72)) == -2.0
+    assert I.auto_exposure(np.full((4, 4, 3), 0.045)) == 2.0
+
+
+def test_an_extrapolation_within_four_times_before_the_first_budget_stands() -> None:
+    t, e = np.array([1.0, 2.0, 4.0]), np.array([0.1, 0.05, 0.025])
+    assert bounded(time_to_error(t, e, 0.2), t, e, 0.2) == (pytest.approx(0.5), True, "")
+
+
+def test_the_winner_named_is_the_one_at_the_largest_budget(tmp_path: Path) -> None:
+    from compare.report.build import _about_scene
+
+    runs = _runs()
+    runs.loc[(runs.method == "lt") & (runs.budget == 1.0), "relmse"] = 0.01  # lt wins at 1 s
+    scene = tmp_path / "scene.yaml"
+    scene.write_text("expected_winners: [pt]\n")
+    text = _about_scene(str(scene), "s", T.summarize(runs), "relmse", ["pt", "lt"], {})
+    assert "<b>Won</b> at 4 s: pt (as expected" in text
+
+
+def test_each_image_is_shown_under_its_own_budget(report: Path) -> None:
+    page = (report / "scene-toy.html").read_text()
+    runs = pd.read_csv(report / "tables" / "runs.csv")
+    grid = page[page.index("Equal-time images") :]
+    sections = re.split(r"<h3>([\d.]+) s</h3>", grid)[1:]
+    assert sections
+    for b, html in zip(sections[::2], sections[1::2], strict=True):
+        for m in ("pt", "lt"):
+            r = runs[(runs.method == m) & (runs.seed == 1) & (runs.budget == float(b))]
+            assert f"{m} · relMSE {T.fmt(r.relmse.iloc[0])}" in html, (m, b)
+
+
+def test_index_and_scene_pages_colour_methods_alike(report: Path, tmp_path: Path, monkeypatch):
+    from compare.report import build
+
+    seen = []
+    real = build.convergence_svg
+
+    def recording(*args, **kwargs):
+        seen.append(dict(args[3]))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(build, "convergence_svg", recording)
+    spec = {
+        "reports": str(tmp_path / "out"), "tables": str(report / "tables"), "metric": "relmse",
+        "baseline": "pt", "factor": 10, "title": "t", "study": "t", "methods": ["pt", "lt"],
+        "scenes": ["toy"], "refs": {"toy": str(report.parent / "ref.json")},
+    }  # fmt: skip
+    build.build_index(spec)
+    assert seen and all(c == {"pt": "#1f77b4", "lt": "#ff7f0e"} for c in seen)

@@ -381,3 +381,53 @@ def test_real_renderer_tiny(tmp_path: Path) -> None:
     side = tmp_path / "results" / "tiny" / "render" / "cbox-fog" / "pt-rr1" / "s1" / "run.json"
     overrides = json.loads(side.read_text())["overrides"]
     assert overrides[-1] == "integrator.rr_depth=1" and "film.width=32" in overrides
+
+
+# ----------------------------------------------------------------------- what the jobs are given
+# Each of these caught a bug injected into a copy of the workflow that the tests above let pass.
+
+
+def test_a_scenes_reference_spp_overrides_the_default(tmp_path: Path) -> None:
+    from compare.plan import make_plan
+
+    for s in ("cbox", "fog"):
+        (tmp_path / s).mkdir()
+        (tmp_path / s / "scene.yaml").write_text("# fake\n")
+    cfg = {
+        "scenes": ["cbox", {"name": "fog", "reference_spp": 8}], "scenes_dir": str(tmp_path),
+        "methods": ["pt"], "budgets": [1], "seeds": [1], "reference": {"spp": 64}, "pgi": "echo",
+    }  # fmt: skip
+    plan = make_plan(cfg, tmp_path, check_methods=False, check_scenes=False)
+    assert plan.scenes["cbox"].reference_spp == 64 and plan.scenes["fog"].reference_spp == 8
+
+
+@pytest.fixture(scope="module")
+def dry_run(tmp_path_factory: pytest.TempPathFactory) -> str:
+    """The shell commands of a whole study, not run: seeds 3 and 7, a variant."""
+    wd = tmp_path_factory.mktemp("dry")
+    (wd / "scenes" / "alpha").mkdir(parents=True)
+    (wd / "scenes" / "alpha" / "scene.yaml").write_text("# fake\n")
+    write_config(
+        wd / "cfg.yaml", wd / "scenes", seeds=[3, 7], reference={"spp": 16, "seed": 100},
+        variants={"pt-delta": {"method": "pt", "set": ["integrator.estimator=delta"]}},
+    )  # fmt: skip
+    p = snakemake(
+        wd, "--configfile", "cfg.yaml", "-n", "--forceall", "--printshellcmds",
+        env={"FAKE_PGI_METHODS": "pt,lt"},
+    )  # fmt: skip
+    return p.stdout
+
+
+def test_reference_halves_have_their_own_seeds(dry_run: str) -> None:
+    assert sorted(re.findall(r" reference \S+ --spp 16 --seed (\d+)", dry_run)) == ["100", "101"]
+
+
+def test_runs_use_the_configured_seeds(dry_run: str) -> None:
+    assert set(re.findall(r" render \S+ .*?--seed (\d+)", dry_run)) == {"3", "7"}
+
+
+def test_scene_page_gets_each_variants_method_and_one_seeds_images(dry_run: str) -> None:
+    spec = json.loads(re.search(r"compare.steps report-scene '(.*?)' >", dry_run).group(1))
+    assert spec["bases"] == {"pt": "pt", "lt": "lt", "pt-delta": "pt"}
+    assert spec["seed"] == 3
+    assert all(f"/s{spec['seed']}/" in p for ps in spec["snapshots"].values() for p in ps)
