@@ -133,6 +133,22 @@ def test_directional_light_matches_pt(tmp_path):
     _vs_pt(load_scene(tmp_path / "scene.yaml"), 24, 1 << 14, 24, 64)
 
 
+def test_directional_light_of_a_scene_away_from_the_origin_matches_pt(tmp_path):
+    """The sun's disk is centred on the scene's bounding sphere, not on the world's origin:
+    centred there, this scene moved by 1 along x was 20 % dark in lt, and black moved by 3."""
+    text = textwrap.dedent(_DIRECTIONAL)
+    for old, new in (
+        ("origin: [0, 0, 3.9], target: [0, 0, 0]", "origin: [1, 0, 3.9], target: [1, 0, 0]"),
+        ("{translate: [0, -1, 0]}", "{translate: [1, -1, 0]}"),
+        ("{translate: [0, 0, -1]}", "{translate: [1, 0, -1]}"),
+        ("{translate: [0, -0.605, 0]}", "{translate: [1, -0.605, 0]}"),
+    ):
+        assert text.count(old) == 1, old
+        text = text.replace(old, new)
+    (tmp_path / "scene.yaml").write_text(text)
+    _vs_pt(load_scene(tmp_path / "scene.yaml"), 24, 1 << 14, 24, 64)
+
+
 def test_lights_placed_on_surfaces_match_pt():
     """A spot set into the ceiling and a point light on the floor: light paths start an offset
     off the light, as pt's shadow rays stop short of it. Started on the light itself, every
@@ -207,7 +223,8 @@ def _render(name: str, threads: int, **params) -> np.ndarray:
     return method.image()
 
 
-@pytest.mark.parametrize("name", ["cbox-fog", "cbox-glass"])
+# cbox-grid: ratio tracking on the connections draws from their own random streams
+@pytest.mark.parametrize("name", ["cbox-fog", "cbox-glass", "cbox-grid"])
 def test_same_seed_same_image_whatever_the_thread_count(name):
     a = _render(name, 1, light_paths=4096)
     b = _render(name, 2, light_paths=4096)
@@ -231,12 +248,13 @@ def test_unknown_parameter_is_a_clear_error():
         LightTracing(load_small("cbox", 8, 8), seed=0, threads=1, params={"spp": 3})
 
 
-def _light_paths(name: str, paths: int = 1 << 14, **kw):
-    lt = LightTracing(load_small(name, 8, 8), seed=0, threads=2, params={"light_paths": paths})
+def _light_paths(name: str, paths: int = 1 << 14, overrides: tuple[str, ...] = (), **kw):
+    scene = load_small(name, 8, 8, overrides)
+    lt = LightTracing(scene, seed=0, threads=2, params={"light_paths": paths})
     lp = LightPaths(
         lt.native,
         lt.tracer,
-        load_small(name, 8, 8),
+        scene,
         seed=9,
         threads=2,
         paths=paths,
@@ -258,6 +276,20 @@ def test_emission_vertices_carry_the_emitted_flux():
     expected = np.array([18.4, 14.0, 6.75]) * area
     assert np.allclose(v["power"][emission].mean(axis=0), expected, rtol=1e-9)
     assert np.all(v["depth"][emission] == 0)
+
+
+def test_light_paths_refract_into_a_liquid_without_the_radiance_scale():
+    """Light paths carry flux: refraction does not scale it by 1 / eta^2 (that factor belongs
+    to radiance, on camera paths). With the juice white and non-absorbing, a medium vertex of
+    depth 2 (emitted, refracted through the glass into the juice, first collision) carries
+    exactly the emitted flux per path; scaled as radiance it carried 1 / 1.33^2 = 0.565 of it.
+    Entering and leaving a dielectric cancel, so images of lights outside the glass miss it."""
+    lp = _light_paths("juice", overrides=("media.juice.sigma_t=2", "media.juice.albedo=1"))
+    v = lp.kernel.vertices()
+    flux = v["power"][v["kind"] == 0].mean(axis=0) * np.pi  # Le pi A / pick
+    inside = (v["kind"] == 2) & (v["depth"] == 2)
+    assert inside.sum() > 50
+    np.testing.assert_allclose(v["power"][inside] / flux, 1.0, rtol=1e-9)
 
 
 def test_records_follow_depth_and_medium_rules():
