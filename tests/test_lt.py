@@ -103,14 +103,16 @@ _DELTA_LIGHTS = """
 """
 
 
-def _vs_pt(scene, lt_iters: int, paths: int, pt_iters: int, spp: int) -> None:
-    """lt agrees with pt, and the check has power: lt's images 5 % darker or brighter fail."""
+def _vs_pt(scene, lt_iters: int, paths: int, pt_iters: int, spp: int) -> Estimate:
+    """lt agrees with pt, and the check has power: lt's images 5 % darker or brighter fail.
+    Returns pt's estimate."""
     lt = ours(LightTracing, scene, lt_iters, light_paths=paths)
     pt = ours(PathTracing, scene, pt_iters, seed=3, spp_per_wave=spp)
     _check(lt, pt, "lt vs pt")
     for scale in (0.95, 1.05):
         agrees, detail = _agrees(Estimate(lt.samples * scale), pt)
         assert not agrees, f"lt x {scale} passed: {detail}"
+    return pt
 
 
 def test_point_and_spot_lights_in_fog_match_pt(tmp_path):
@@ -172,8 +174,7 @@ def test_an_emitter_of_unequal_triangles_matches_pt_and_mitsuba():
         "transform: [{scale: [0.25, 0.02, 0.2]}, {translate: [0, 0.95, 0]}]}"
     )
     scene = load_small("cbox", 16, 16, (lamp,))
-    _vs_pt(scene, 16, 1 << 13, 32, 64)
-    pt = ours(PathTracing, scene, 32, seed=3, spp_per_wave=64).image_mean()
+    pt = _vs_pt(scene, 16, 1 << 13, 32, 64).image_mean()
     mi = mitsuba(scene, 32, 64).image_mean()
     assert agreement(pt, mi, ALPHA).z_ok, agreement(pt, mi, ALPHA)
     for scale in (0.95, 1.05):  # the check has power
