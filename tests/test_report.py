@@ -13,11 +13,11 @@ import pytest
 
 from compare import tables as T
 from compare.convergence import bounded, fit_slope, fit_slope_above_floor, time_to_error
-from compare.imageio import write_exr, write_json
 from compare.report import images as I  # noqa: N812
 from compare.report.browser_check import check_page, find_chromium
 from compare.report.build import build_index, build_scene_page
 from compare.runs import compare_run, merge_reference
+from renderer.imageio import write_exr, write_json
 
 needs_chromium = pytest.mark.skipif(find_chromium() is None, reason="no chromium")
 

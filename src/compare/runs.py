@@ -14,7 +14,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from .imageio import read_exr, read_json, write_exr, write_json
+from renderer.imageio import read_exr, read_json, write_exr, write_json
+
 from .metrics import (
     METRICS,
     REF_QUALITY_FACTOR,

@@ -127,10 +127,11 @@ def write_exr(path: str | Path, image: np.ndarray, metadata: dict | None = None)
 
 
 def write_json(path: str | Path, data: dict) -> None:
-    """Write a JSON sidecar atomically."""
+    """Write a JSON sidecar atomically (its folder is created as write_exr's is)."""
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
     try:
+        path.parent.mkdir(parents=True, exist_ok=True)
         tmp.write_text(json.dumps(data, indent=2, sort_keys=True, default=str) + "\n")
         os.replace(tmp, path)
     except OSError as e:
@@ -138,6 +139,11 @@ def write_json(path: str | Path, data: dict) -> None:
     finally:
         if tmp.exists():
             tmp.unlink()
+
+
+def read_json(path: str | Path) -> dict:
+    """A JSON sidecar's contents."""
+    return json.loads(Path(path).read_text())
 
 
 def write_image_and_sidecar(path: str | Path, image: np.ndarray, info: dict) -> None:

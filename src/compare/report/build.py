@@ -19,8 +19,9 @@ import numpy as np
 import pandas as pd
 import yaml
 
+from renderer.imageio import read_exr, read_json
+
 from .. import tables as T
-from ..imageio import read_exr, read_json
 from ..metrics import EPS, relmse_map
 from . import images as I  # noqa: N812
 from .plots import convergence_svg, method_colours
