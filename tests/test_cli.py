@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -278,6 +279,34 @@ def test_images_that_are_not_whole_exr_files_are_refused(tmp_path):
     xyz_image.write(str(tmp_path / "xyz.exr"))
     r = pgi("compare", str(tmp_path / "xyz.exr"), str(tmp_path / "ref.exr"))
     assert r.returncode == 2 and "expected channels R, G, B" in r.stderr and "X, Y, Z" in r.stderr
+
+
+def test_concurrent_failed_reads_give_stderr_back(tmp_path):
+    """A failed read captures the process's stderr (OpenEXR prints there itself). Reads from
+    several threads at once must each get their own one-line error and leave file
+    descriptor 2 where it was: without one capture at a time, a thread restores another's
+    capture file as stderr."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from renderer.imageio import read_exr, write_exr
+
+    write_exr(tmp_path / "ref.exr", np.random.default_rng(1).uniform(size=(64, 64, 3)))
+    data = (tmp_path / "ref.exr").read_bytes()
+    (tmp_path / "cut.exr").write_bytes(data[: len(data) // 2])
+    before = os.fstat(2)
+
+    def read_cut(_: int) -> str:
+        try:
+            read_exr(tmp_path / "cut.exr")
+        except PgiError as e:
+            return str(e)
+        return "read a truncated file"
+
+    with ThreadPoolExecutor(4) as pool:
+        errors = list(pool.map(read_cut, range(400)))
+    after = os.fstat(2)
+    assert (after.st_dev, after.st_ino) == (before.st_dev, before.st_ino)
+    assert all("cannot read pixels" in e and "\n" not in e for e in errors), set(errors)
 
 
 def test_interrupt_inside_mitsuba_exits_130(monkeypatch, capsys):
