@@ -199,7 +199,11 @@ def test_bad_scene_gives_one_line_error_and_no_output(tmp_path, kind):
         (["reference", "cbox", "--spp", "1", "--threads", "999", "-o", "r.exr"], "core"),
         (
             ["render", "cbox", "--method", "pt", "--snapshots", "1,1.0000001", "-o", "x.exr"],
-            "two times share a file name",
+            "--snapshots: 1.0 s and 1.0000001 s share the file name x.t1.exr",
+        ),
+        (
+            ["render", "cbox", "--method", "pt", "--snapshots", "0.1,,0.2", "-o", "x.exr"],
+            "expected comma-separated seconds, got '0.1,,0.2'",
         ),
         (["render", "cbox", "--method", "pt"], "required: -o/--output"),
         (["render", "cbox", "--method", "pt", "--spp", "1.5", "-o", "x.exr"], "an integer"),
@@ -489,6 +493,7 @@ def test_spp_budget_is_met_exactly_by_every_method(tmp_path):
     [
         (PgiError("out of photons"), 2, "pgi: error: out of photons"),
         (KeyboardInterrupt(), 130, "pgi: interrupted"),
+        ("terminated", 143, "pgi: terminated"),
     ],
 )
 def test_failure_mid_render_keeps_whole_snapshots_only(
@@ -502,6 +507,8 @@ def test_failure_mid_render_keeps_whole_snapshots_only(
     from renderer.methods.pt import PathTracing
 
     run = PathTracing.run_iteration
+    if failure == "terminated":
+        failure = cli.Terminated()  # what the CLI's SIGTERM handler raises
 
     def failing(self, iteration):
         if iteration >= 1:
@@ -530,11 +537,74 @@ def test_failure_mid_render_keeps_whole_snapshots_only(
     sidecar = json.loads(snapshot.with_suffix(".json").read_text())
     assert sidecar["snapshot_budget"] == 1e-06 and sidecar["spp"] > 0
     assert read_exr(snapshot).shape == (16, 16, 3)
-    # A final image left by an earlier run is named as such, not taken for this run's.
+    # A final image and a snapshot left by an earlier run are named as such, not taken for
+    # this run's.
     out.write_bytes(b"earlier")
+    (tmp_path / "fog.t60.exr").write_bytes(b"earlier")
     assert cli.main([*args, *small("--threads", "1")]) == code
-    assert f"the {out} there is from an earlier run" in capsys.readouterr().err
+    assert f"{tmp_path / 'fog.t60.exr'}, {out} are from an earlier run" in capsys.readouterr().err
     assert out.read_bytes() == b"earlier"
+
+
+def test_progress_lines(monkeypatch, capsys):
+    """On a terminal, a message after the bar starts a line of its own; otherwise the last
+    plain line is not printed twice when the final update repeats it."""
+    from renderer import cli
+    from renderer.progressive import Progress
+
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    Progress(None, 10, enabled=True).update(1.0, 5)
+    assert cli._interrupted(KeyboardInterrupt()) == 130
+    assert capsys.readouterr().err.endswith("5 spp\npgi: interrupted\n")
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: False)
+    bar = Progress(None, 10, enabled=True)
+    bar.update(6.0, 10)
+    bar.update(6.0, 10, force=True)
+    assert capsys.readouterr().err == "progress 100.0% 6.0 s 10 spp\n"
+
+
+def test_sigterm_mid_render_cleans_up_as_ctrl_c_does(tmp_path):
+    """SIGTERM (a cancelled workflow job, `timeout`) ends a render as Ctrl-C does: the
+    finished snapshot stays whole, no final image and no temporary file are left, one line
+    says so, and the exit status is 128 + 15."""
+    import signal
+    import time
+
+    out = tmp_path / "fog.exr"
+    args = ["render", "cbox-fog", "--method", "pt", "--time", "60", "--snapshots", "0.5",
+            *small("--threads", "1"), "-o", str(out)]  # fmt: skip
+    proc = subprocess.Popen(
+        [*PGI, *args], stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    snapshot = tmp_path / "fog.t0.5.json"
+    deadline = time.monotonic() + 300
+    while not snapshot.exists() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert snapshot.exists(), proc.communicate()
+    proc.send_signal(signal.SIGTERM)
+    stdout, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 143, stderr
+    assert stderr.strip().splitlines()[-1] == "pgi: terminated" and "Traceback" not in stderr
+    assert f"kept {tmp_path / 'fog.t0.5.exr'}" in stderr and stdout == ""
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fog.t0.5.exr", "fog.t0.5.json"]
+
+
+def test_standard_output_that_cannot_be_written(tmp_path):
+    """A reader that closes the pipe (`pgi methods | head -0`) ends pgi quietly with SIGPIPE's
+    status; a full disk is one line on stderr. Neither is a traceback."""
+    proc = subprocess.Popen([*PGI, "methods"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+    proc.stdout.close()  # before pgi writes
+    stderr = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 141 and stderr == ""
+    if not Path("/dev/full").exists():
+        return
+    with open("/dev/full", "w") as full:
+        r = subprocess.run([*PGI, "methods"], stdout=full,
+                           stderr=subprocess.PIPE, text=True)  # fmt: skip
+    assert r.returncode == 2, r.stderr
+    assert r.stderr == "pgi: error: cannot write to standard output: No space left on device\n"
 
 
 def test_fingerprints_cover_the_code_each_output_runs():

@@ -3,9 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import errno
 import json
 import math
+import os
+import platform
+import signal
 import sys
+import threading
 from pathlib import Path
 
 from . import __version__
@@ -14,7 +19,7 @@ from .errors import PgiError, caused_by_interrupt, shorten_repr
 
 def _floats(text: str) -> list[float]:
     try:
-        values = [float(x) for x in text.split(",") if x.strip()]
+        values = [float(x) for x in text.split(",")]  # an empty item is an error too
     except ValueError:
         raise argparse.ArgumentTypeError(
             f"expected comma-separated seconds, got {text!r}"
@@ -88,9 +93,11 @@ def cmd_render(args: argparse.Namespace) -> int:
 
     out = check_output_path(args.output)
     snapshot_files = [snapshot_path(out, s) for s in args.snapshots or ()]
-    if len(set(snapshot_files)) != len(snapshot_files):
-        raise PgiError(f"--snapshots {','.join(f'{s:g}' for s in args.snapshots)}: two times "
-                       "share a file name")  # fmt: skip
+    for i, path in enumerate(snapshot_files):
+        if path in snapshot_files[:i]:
+            first = args.snapshots[snapshot_files.index(path)]
+            raise PgiError(f"--snapshots: {first} s and {args.snapshots[i]} s share the file name "
+                           f"{path.name}")  # fmt: skip
     for path in snapshot_files:
         check_output_path(path)
     _refuse_overwriting_the_scene(args.scene, [out, *snapshot_files])
@@ -137,6 +144,9 @@ def cmd_reference(args: argparse.Namespace) -> int:
     info = dict(
         info,
         scene=scene.name,
+        scene_file=str(scene.path),
+        resolution=[scene.film.width, scene.film.height],
+        host=platform.node(),
         version=__version__,
         spp=args.spp,
         seed=args.seed,
@@ -346,12 +356,85 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (a cancelled job, `timeout`, a batch system), raised where Python runs next so
+    that it cleans up as after Ctrl-C: temporary files go, finished snapshots stay."""
+
+
+def _terminate(signum: int, frame: object) -> None:
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)  # a second one must not cut the cleanup
+    raise Terminated
+
+
+class StdoutFailed(Exception):
+    """Standard output could not be written: its reader went away, or its disk is full."""
+
+    def __init__(self, error: OSError) -> None:
+        super().__init__(error.strerror or str(error))
+        self.errno = error.errno
+
+
+class _CheckedStdout:
+    """sys.stdout whose write errors say they are stdout's, not those of some file."""
+
+    def __init__(self, stream: object) -> None:
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        try:
+            return self._stream.write(text)
+        except OSError as e:
+            raise StdoutFailed(e) from None
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except OSError as e:
+            raise StdoutFailed(e) from None
+
+    def __getattr__(self, name: str) -> object:
+        return getattr(self._stream, name)
+
+
+def _stdout_failed(e: StdoutFailed) -> int:
+    # Nothing more can reach it; without this, Python's exit would complain of it again.
+    try:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    except (OSError, ValueError):  # not a file (a test's capture)
+        pass
+    if e.errno == errno.EPIPE:  # the reader closed the pipe (`| head`): quietly, as a process
+        return 128 + signal.SIGPIPE  # that SIGPIPE ends
+    print(f"pgi: error: cannot write to standard output: {e}", file=sys.stderr)
+    return 2
+
+
+def _interrupted(e: KeyboardInterrupt) -> int:
+    from .progressive import end_progress_line
+
+    end_progress_line()
+    if isinstance(e, Terminated):
+        print("pgi: terminated", file=sys.stderr)
+        return 128 + signal.SIGTERM
+    print("pgi: interrupted", file=sys.stderr)
+    return 130
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    main_thread = threading.current_thread() is threading.main_thread()
+    on_sigterm = signal.signal(signal.SIGTERM, _terminate) if main_thread else None
+    stdout, sys.stdout = sys.stdout, _CheckedStdout(sys.stdout)
     try:
-        return args.func(args)
+        args = parser.parse_args(argv)  # --help writes to stdout too
+        code = args.func(args)
+        sys.stdout.flush()  # here, not at exit, where its error would escape us
+        return code
+    except StdoutFailed as e:
+        return _stdout_failed(e)
     except PgiError as e:
+        from .progressive import end_progress_line
+
+        end_progress_line()
         print(f"pgi: error: {e}", file=sys.stderr)
         return 2
     except MemoryError:
@@ -361,14 +444,17 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 2
-    except KeyboardInterrupt:
-        print("pgi: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as e:
+        return _interrupted(e)
     except Exception as e:
-        if not caused_by_interrupt(e):
+        interrupt = caused_by_interrupt(e)
+        if interrupt is None:
             raise
-        print("pgi: interrupted", file=sys.stderr)
-        return 130
+        return _interrupted(interrupt)
+    finally:
+        sys.stdout = stdout
+        if on_sigterm is not None:  # None: a handler from outside Python, left in place
+            signal.signal(signal.SIGTERM, on_sigterm)
 
 
 if __name__ == "__main__":

@@ -32,12 +32,13 @@ def shorten_repr(value: Any, limit: int = 40) -> str:
     return shorten(repr(value), limit)
 
 
-def caused_by_interrupt(error: BaseException | None) -> bool:
-    """Whether Ctrl-C caused this error (Mitsuba's JIT re-raises it as a RuntimeError)."""
+def caused_by_interrupt(error: BaseException | None) -> KeyboardInterrupt | None:
+    """The interrupt (Ctrl-C, or the CLI's SIGTERM) that caused this error, if one did
+    (Mitsuba's JIT re-raises it as a RuntimeError)."""
     seen = set()
     while error is not None and id(error) not in seen:
         if isinstance(error, KeyboardInterrupt):
-            return True
+            return error
         seen.add(id(error))
         error = error.__cause__ or error.__context__
-    return False
+    return None

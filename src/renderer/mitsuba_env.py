@@ -67,8 +67,9 @@ def import_mitsuba(variant: str | None = None) -> ModuleType:
                 mi.set_variant("llvm_ad_rgb")
                 return mi
             except Exception as e:
-                if caused_by_interrupt(e):  # Ctrl-C while Dr.Jit starts LLVM
-                    raise KeyboardInterrupt from e
+                interrupt = caused_by_interrupt(e)
+                if interrupt is not None:  # Ctrl-C (or SIGTERM) while Dr.Jit starts LLVM
+                    raise type(interrupt)() from e
                 # Still a correct render, 2-3x slower: a timed comparison must know.
                 print(
                     f"pgi: note: Mitsuba's llvm_ad_rgb variant failed ({one_line(str(e))}); "

@@ -56,6 +56,20 @@ def check_threads(threads: int | None) -> None:
         )
 
 
+# Whether a progress bar has drawn on stderr's current line: a message printed while it
+# has (an error, an interrupt) must start a line of its own.
+_bar_line_open = False
+
+
+def end_progress_line() -> None:
+    """Ends a line a progress bar left open on the terminal."""
+    global _bar_line_open
+    if _bar_line_open:
+        sys.stderr.write("\n")
+        sys.stderr.flush()
+        _bar_line_open = False
+
+
 class Progress:
     """A bar on a terminal, plain lines otherwise (one every few seconds)."""
 
@@ -64,8 +78,10 @@ class Progress:
         self.enabled = enabled
         self.tty = sys.stderr.isatty()
         self._last = 0.0
+        self._printed: tuple[float, int] | None = None  # the last plain line's time and spp
 
     def update(self, seconds: float, spp: int, force: bool = False) -> None:
+        global _bar_line_open
         if not self.enabled:
             return
         frac = 0.0
@@ -77,11 +93,12 @@ class Progress:
         if self.tty:
             bar = "#" * int(frac * 30)
             sys.stderr.write(f"\r[{bar:<30}] {frac:6.1%}  {seconds:7.1f} s  {spp} spp")
+            _bar_line_open = True
             if force:
-                sys.stderr.write("\n")
+                end_progress_line()
             sys.stderr.flush()
-        elif force or seconds - self._last >= 5:
-            self._last = seconds
+        elif (force or seconds - self._last >= 5) and self._printed != (seconds, spp):
+            self._last, self._printed = seconds, (seconds, spp)
             print(f"progress {frac:6.1%} {seconds:.1f} s {spp} spp", file=sys.stderr, flush=True)
 
 
@@ -176,9 +193,16 @@ def render(
     except BaseException:
         # Snapshots already written are whole renders of their budgets (image and sidecar):
         # they stay, and the user is told which; the final image is never written.
+        end_progress_line()
         notes = [f"kept {', '.join(str(p) for p in written)}"] if written else []
-        if out.exists():  # not this run's: say so, rather than delete a file we did not write
-            notes.append(f"the {out} there is from an earlier run")
+        # Files there that this run did not write: say so, rather than delete them.
+        earlier = [p for p in (snapshot_path(out, s) for s in pending) if p.exists()]
+        earlier += [out] if out.exists() else []
+        if earlier:
+            notes.append(
+                f"{', '.join(str(p) for p in earlier)} {'is' if len(earlier) == 1 else 'are'} "
+                "from an earlier run"
+            )
         if notes:
             print(f"note: no final image; {'; '.join(notes)}", file=sys.stderr)
         raise
