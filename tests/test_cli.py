@@ -546,6 +546,31 @@ def test_failure_mid_render_keeps_whole_snapshots_only(
     assert out.read_bytes() == b"earlier"
 
 
+def test_render_refuses_hostile_scene_files_before_looking_for_its_inputs(tmp_path):
+    """`pgi render` walks the scene's documents for the files it reads (so as not to overwrite
+    them) before validating them: a recursive YAML alias, a "billion laughs" and a symlink
+    loop used to give a RecursionError, a hang and a RuntimeError there."""
+    box = SCENES / "cbox" / "box.yaml"
+    (tmp_path / "recursive.yaml").write_text(f"include: {box}\nstresses: &a [*a]\n")
+    laughs = ["a0: &a0 [x, x, x, x, x, x, x, x, x, x]"]
+    laughs += [f"a{i}: &a{i} [{', '.join([f'*a{i - 1}'] * 10)}]" for i in range(1, 10)]
+    (tmp_path / "laughs.yaml").write_text(f"include: {box}\n" + "\n".join(laughs) + "\n")
+    (tmp_path / "loop.ply").symlink_to(tmp_path / "loop.ply")
+    looped = {"include": str(box),
+              "shapes": [{"type": "mesh", "file": "loop.ply", "material": "white"}]}  # fmt: skip
+    (tmp_path / "symlink.yaml").write_text(yaml.safe_dump(looped))
+    for name, expected in (("recursive", "stresses: expected a list of strings"),
+                           ("laughs", "a0: unknown key"),
+                           ("symlink", "shapes[0].file: mesh file not found")):  # fmt: skip
+        r = pgi("render", str(tmp_path / f"{name}.yaml"), "--method", "pt", "--spp", "1",
+                "-o", str(tmp_path / "x.exr"))  # fmt: skip
+        assert r.returncode == 2 and "Traceback" not in r.stderr, (name, r.stderr)
+        assert expected in r.stderr and len(r.stderr.splitlines()) == 1, (name, r.stderr)
+    long_name = tmp_path / ("a" * 300 + ".exr")
+    r = pgi("render", "cbox", "--method", "pt", "--spp", "1", "-o", str(long_name))
+    assert r.returncode == 2 and r.stderr.strip().endswith(": File name too long"), r.stderr
+
+
 def test_progress_lines(monkeypatch, capsys):
     """On a terminal, a message after the bar starts a line of its own; otherwise the last
     plain line is not printed twice when the final update repeats it."""

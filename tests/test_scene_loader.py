@@ -707,11 +707,50 @@ def test_perlin_octaves_beyond_the_lattice_are_refused(tmp_path):
     expect_error(write(tmp_path, doc), "media.fog.density.offset", "<= 1e\\+06")
 
 
-def test_vdb_bbox_beyond_int32_is_refused(tmp_path):
+def test_vdb_bbox_near_the_end_of_int32_is_refused(tmp_path):
+    """OpenVDB crashed (a segmentation fault) reading a box at 2^31 - 4096."""
     shutil.copy(SCENES / "smoke" / "plume.vdb", tmp_path / "p.vdb")
-    box = {"type": "vdb", "file": "p.vdb", "bbox": [[0, 0, 0], [2147483648, 0, 0]]}
+    box = {"type": "vdb", "file": "p.vdb", "bbox": [[2147479552, 0, 0], [2147479552, 0, 0]]}
     doc = edit(media={"fog": {"type": "grid", "density": box, "albedo": 0.5}})
-    expect_error(write(tmp_path, doc), "media.fog.density.bbox[1][0]", "<= 2147483647")
+    expect_error(write(tmp_path, doc), "media.fog.density.bbox[0][0]", "<= 1073741824")
+
+
+def test_loader_hard_cases_from_fuzzing(tmp_path):
+    """Inputs that crashed, hung or printed a traceback or warnings before the error."""
+    grid = edit(media={"fog": {"type": "grid", "density": {"type": "step", "resolution": 4,
+                                                             "values": [0, 1]},
+                               "albedo": 0.5}})  # fmt: skip
+    path = write(tmp_path, grid)
+    # A subnormal scale: relative to the box it is not flat, but the inverse overflows (the
+    # core then crashed).
+    subnormal = "media.fog.transform=[{scale: [1.0e-310, 2.0, 2.0]}]"
+    expect_error(path, "media.fog.transform", "is singular", [subnormal])
+    # A value beyond float32 is a bound on the key, not "non-finite values" after the cast.
+    expect_error(path, "media.fog.density.values[0]", "<= 1e\\+30",
+                 ["media.fog.density.values=[1.0e300, 1]"])  # fmt: skip
+    # A step grid of one voxel across its other axes: a broadcast view with zero strides,
+    # which the core refused with a TypeError.
+    from renderer.engine import build_native_scene
+
+    build_native_scene(load_scene(path, ["media.fog.density.resolution=[4, 1, 1]"]))
+    # Without Russian roulette nothing ends a path in a closed lossless scene.
+    expect_error(path, "integrator.rr_depth", "at most 10000", ["integrator.rr_depth=10001"])
+    load_scene(path, ["integrator.rr_depth=100000", "integrator.max_depth=10000"])
+    # Python refuses int() of over 4300 digits: a YAML error, not a ValueError.
+    with pytest.raises(PgiError, match="an integer of over 4300 digits"):
+        load_scene(path, ["film.width=" + "9" * 5000])
+    (tmp_path / "big.yaml").write_text("film: {width: " + "9" * 5000 + ", height: 8}\n")
+    with pytest.raises(PgiError, match="big.yaml: invalid YAML: an integer of over 4300"):
+        load_scene(tmp_path / "big.yaml")
+
+
+def test_mie_tables_that_would_take_minutes_are_refused(tmp_path):
+    path = write(tmp_path, edit(media={"fog": {"type": "homogeneous", "sigma_t": 1,
+                                               "albedo": 0.5}}))  # fmt: skip
+    huge = "media.fog.phase={type: mie, effective_radius: 50, effective_variance: 0.5, "
+    expect_error(path, "media.fog.phase", "size parameter 20913; with resolution 2048",
+                 [huge + "wavelength: 0.1}"])  # fmt: skip
+    expect_error(path, "media.fog.phase.ior", "<= 10", ["media.fog.phase={type: mie, ior: 1.0e5}"])
 
 
 def test_a_truncated_vdb_is_a_short_error(tmp_path):

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import OpenImageIO as oiio
 
-from .errors import PgiError, one_line
+from .errors import PgiError, one_line, shorten
 
 
 def read_exr(path: str | Path) -> np.ndarray:
@@ -164,7 +164,11 @@ def check_output_path(path: str | Path) -> Path:
     if out.suffix.lower() != ".exr":
         raise PgiError(f"-o {path}: the output must be an .exr file")
     for target in (out, out.with_suffix(".json")):
-        if target.is_dir():
+        try:
+            is_dir = target.is_dir()
+        except OSError as e:  # e.g. a file name longer than the file system allows
+            raise PgiError(f"-o {shorten(str(path), 80)}: {e.strerror or e}") from None
+        if is_dir:
             raise PgiError(f"-o {path}: {target} is a directory")
     parent = out.parent
     while not parent.exists() and parent != parent.parent:

@@ -244,7 +244,8 @@ def step_density(resolution: tuple[int, int, int], axis: int = 0, position: floa
     shape[axis] = resolution[axis]
     c = axis_centres(resolution[axis]).reshape(shape)
     step = np.where(c < position, values[0], values[1]).astype(np.float32)
-    return np.ascontiguousarray(np.broadcast_to(step, tuple(resolution)))
+    # A copy: a broadcast view keeps zero strides, which the core refuses.
+    return np.broadcast_to(step, tuple(resolution)).copy()
 
 
 # --------------------------------------------------------------------------- Lorenz-Mie
@@ -285,6 +286,11 @@ def mie_amplitudes(x: float, m: complex, mu: np.ndarray) -> tuple[np.ndarray, np
 
 
 @functools.lru_cache(maxsize=8)
+def mie_largest_radius(effective_radius: float, effective_variance: float) -> float:
+    """The largest droplet radius mie_phase_table integrates over (micrometres)."""
+    return effective_radius * (1 + 8 * np.sqrt(effective_variance))
+
+
 def mie_phase_table(effective_radius: float = 2.0, effective_variance: float = 0.1,
                     wavelength: float = 0.55, ior: float = 1.333,
                     resolution: int = 2048, radii: int = 64) -> np.ndarray:  # fmt: skip
@@ -299,7 +305,7 @@ def mie_phase_table(effective_radius: float = 2.0, effective_variance: float = 0
     """
     mu = np.linspace(-1.0, 1.0, resolution)
     a, v = effective_radius, effective_variance
-    r = np.linspace(0.05 * a, a * (1 + 8 * np.sqrt(v)), radii)
+    r = np.linspace(0.05 * a, mie_largest_radius(a, v), radii)
     weights = r ** ((1 - 3 * v) / v) * np.exp(-r / (a * v))
     weights *= np.gradient(r)
     intensity = np.zeros(resolution)

@@ -45,6 +45,16 @@ from renderer.scene.model import (
 )
 from renderer.volumes import MAX_GRID_SIDE
 
+# OpenVDB addresses voxels by 32-bit coordinates, and reading near the end of that range
+# overflows inside OpenVDB (a crash at 2^31 - 4096): a VDB `bbox` keeps well inside it.
+MAX_VDB_COORD = 2**30
+# Mie tables: the largest relative index of refraction, and the largest product of the
+# largest droplet's size parameter and the table's resolution (about 5 s of work).
+MAX_MIE_IOR = 10.0
+MAX_MIE_WORK = 4.2e6
+# Bounces a path may make before Russian roulette or max_depth can end it.
+MAX_UNROULETTED_DEPTH = 10_000
+
 SCENE_FILE = "scene.yaml"
 # Bounds that keep every value representable in the float32 of Embree and of the images.
 MAX_LIGHT = 1e30  # emitted radiance, intensity, irradiance
@@ -163,11 +173,24 @@ class _TooDeep(yaml.YAMLError):
     problem = "nested too deeply"
 
 
+class _BadScalar(yaml.YAMLError):
+    """A scalar YAML's constructors cannot convert (an integer of over 4300 digits)."""
+
+    def __init__(self, problem: str) -> None:
+        super().__init__(problem)
+        self.problem = problem
+
+
 def _load_yaml(text: str) -> Any:
     try:
         return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 (a SafeLoader subclass)
     except RecursionError:
         raise _TooDeep() from None
+    except ValueError as e:  # Python's own limit on int() of long digit strings, or a date
+        digits = "digits" in str(e)
+        raise _BadScalar(
+            "an integer of over 4300 digits" if digits else one_line(str(e), 80)
+        ) from None
 
 
 def parse_yaml_value(text: str, where: str) -> Any:
@@ -633,15 +656,27 @@ def _phase(val: _Validator, d: Any, p: KeyPath) -> Phase:
     # mie: a Lorenz-Mie table for water droplets, computed at load (renderer.volumes)
     keys = ("effective_radius", "effective_variance", "wavelength", "ior", "resolution")
     val.mapping(d, p, required=("type",), optional=keys)
-    from renderer.volumes import mie_phase_table
+    from renderer.volumes import mie_largest_radius, mie_phase_table
 
-    table = mie_phase_table(
-        val.number(d.get("effective_radius", 2.0), p + ("effective_radius",), lo=0.01, hi=50),
-        val.number(d.get("effective_variance", 0.1), p + ("effective_variance",), lo=0.01, hi=0.5),
-        val.number(d.get("wavelength", 0.55), p + ("wavelength",), lo=0.1, hi=10),
-        val.number(d.get("ior", 1.333), p + ("ior",), lo=1.0, lo_open=True),
-        val.integer(d.get("resolution", 2048), p + ("resolution",), 16, 1 << 16),
+    radius = val.number(d.get("effective_radius", 2.0), p + ("effective_radius",), lo=0.01, hi=50)
+    variance = val.number(
+        d.get("effective_variance", 0.1), p + ("effective_variance",), lo=0.01, hi=0.5
     )
+    wavelength = val.number(d.get("wavelength", 0.55), p + ("wavelength",), lo=0.1, hi=10)
+    # Droplets, not gems: the series' recurrence runs |ior| x size parameter terms.
+    ior = val.number(d.get("ior", 1.333), p + ("ior",), lo=1.0, lo_open=True, hi=MAX_MIE_IOR)
+    resolution = val.integer(d.get("resolution", 2048), p + ("resolution",), 16, 1 << 16)
+    # The table costs about (largest droplet's size parameter) x resolution: keep it to seconds.
+    size = 2 * np.pi * mie_largest_radius(radius, variance) / wavelength
+    if size * resolution > MAX_MIE_WORK:
+        val.fail(
+            p,
+            f"droplets up to {mie_largest_radius(radius, variance):.3g} um at wavelength "
+            f"{wavelength:g} um have size parameter {size:.0f}; with resolution {resolution} the "
+            f"table would take about {size * resolution / MAX_MIE_WORK * 5:.0f} s to compute "
+            f"(size parameter x resolution at most {MAX_MIE_WORK:.2g}, about 5 s)",
+        )
+    table = mie_phase_table(radius, variance, wavelength, ior, resolution)
     return Phase("tabulated", values=np.array(table))
 
 
@@ -729,7 +764,7 @@ def _load_density(
                     val.fail(p + ("bbox",), "expected [[i0, j0, k0], [i1, j1, k1]] (inclusive)")
                 bbox = tuple(
                     tuple(
-                        val.integer(x, p + ("bbox", r, c), -INT32_MAX - 1, INT32_MAX)
+                        val.integer(x, p + ("bbox", r, c), -MAX_VDB_COORD, MAX_VDB_COORD)
                         for c, x in enumerate(row)
                     )  # fmt: skip
                     for r, row in enumerate(b)
@@ -774,11 +809,13 @@ def _load_density(
             _resolution(val, d["resolution"], p + ("resolution",)),
             axis="xyz".index(axis),
             position=val.number(d.get("position", 0.5), p + ("position",), lo=0, hi=1),
-            values=tuple(val.number(x, p + ("values", i), lo=0) for i, x in enumerate(values)),
+            values=tuple(
+                val.number(x, p + ("values", i), lo=0, hi=MAX_DENSITY) for i, x in enumerate(values)
+            ),
         )
     if not np.all(np.isfinite(a)):
         val.fail(p, f"{source}: density has non-finite values")
-    if np.abs(a).max() > MAX_DENSITY:
+    if np.abs(a).max() > np.float32(MAX_DENSITY):  # 1e30 itself rounds up in float32
         val.fail(
             p,
             f"{source}: density values must be <= {MAX_DENSITY:g} (float32, with headroom), "
@@ -810,7 +847,7 @@ def _medium(val: _Validator, name: str, d: Any) -> Medium:
     phase = _phase(val, d["phase"], p + ("phase",)) if "phase" in d else Phase()
 
     def check_extinction(peak: float, what: str) -> None:
-        if max(sigma_t) * scale * peak > MAX_EXTINCTION:
+        if max(sigma_t) * scale * peak > MAX_EXTINCTION * (1 + 1e-6):  # float32's rounding
             val.fail(p, f"{what} is {max(sigma_t) * scale * peak:g}, above {MAX_EXTINCTION:g}")
 
     if kind == "homogeneous":
@@ -822,8 +859,12 @@ def _medium(val: _Validator, name: str, d: Any) -> Medium:
     if placement is not None:  # an OpenVDB file places its grid; the transform moves it on
         to_world = to_world @ placement
     linear = to_world[:3, :3]
-    # Relative to the box's edge lengths: a tiny grid is fine, a flat one is not.
-    if abs(np.linalg.det(linear)) <= 1e-12 * np.prod(np.linalg.norm(linear, axis=0)):
+    # Relative to the box's edge lengths: a tiny grid is fine, a flat one is not; nor one
+    # so small that the world-to-grid map overflows (subnormal scales).
+    # (A box too large for its determinant is left to the bound on its corners below.)
+    det = abs(np.linalg.det(linear))
+    flat = np.isfinite(det) and det <= 1e-12 * np.prod(np.linalg.norm(linear, axis=0))
+    if flat or not np.all(np.isfinite(np.linalg.inv(linear))):
         val.fail(p + ("transform",), "is singular: the grid's box would have no volume")
     if np.any(linear - np.diag(np.diag(linear))):
         # Mitsuba bounds a grid by the axis-aligned box of its transformed cube and extends
@@ -970,6 +1011,13 @@ def load_scene(path: str | Path, overrides: Sequence[str] = ()) -> Scene:
     ``overrides`` are ``key.path=value`` strings (value parsed as YAML) applied after includes
     and before validation, e.g. ``film.width=64`` or ``media.fog.scale=2``.
     """
+    # Overflow in a check's arithmetic is found by the check (a non-finite result), and
+    # numpy's warning of it would only add lines before the one-line error.
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        return _load_scene(path, overrides)
+
+
+def _load_scene(path: str | Path, overrides: Sequence[str]) -> Scene:
     file = find_scene_file(path)
     origins = _Origins(file)
     doc = _merge_includes(file, _read_yaml(file), origins)
@@ -1003,6 +1051,16 @@ def load_scene(path: str | Path, overrides: Sequence[str] = ()) -> Scene:
         ),
         march_step=val.number(integ.get("march_step", 0.0), ("integrator", "march_step"), lo=0),
     )
+    # Before rr_depth nothing but max_depth ends a path: in a closed scene that loses no
+    # energy, an iteration would not end (and no time budget is checked inside one).
+    unrouletted = min(integrator.rr_depth, integrator.max_depth % (INT32_MAX + 1))
+    if unrouletted > MAX_UNROULETTED_DEPTH:
+        val.fail(
+            ("integrator", "rr_depth"),
+            f"{integrator.rr_depth} with max_depth {integrator.max_depth}: paths could run "
+            f"{unrouletted} bounces before Russian roulette or the depth limit may end them; "
+            f"lower rr_depth or max_depth to at most {MAX_UNROULETTED_DEPTH}",
+        )
 
     shapes_doc = doc["shapes"]
     if not isinstance(shapes_doc, list) or not shapes_doc:
@@ -1116,20 +1174,28 @@ def scene_content_digest(path: str | Path, overrides: Sequence[str] = ()) -> str
     return h.hexdigest()[:16]
 
 
-def _named_assets(node: Any, here: Path) -> Iterable[Path]:
+def _named_assets(node: Any, here: Path, visited: set[int] | None = None) -> Iterable[Path]:
     """Paths a scene document names: ``file:`` values, and a grid's ``density`` given as a
-    .npy/.vdb file name."""
+    .npy/.vdb file name. Each list or mapping is visited once: YAML aliases can make a
+    document recursive, or exponentially large (a "billion laughs"), before it is validated."""
+    visited = set() if visited is None else visited
+    if not isinstance(node, (list, dict)) or id(node) in visited:
+        return
+    visited.add(id(node))
     if isinstance(node, list):
         for item in node:
-            yield from _named_assets(item, here)
-    elif isinstance(node, dict):
-        for key, value in node.items():
-            if isinstance(value, str) and (
-                key == "file" or (key == "density" and value.lower().endswith((".npy", ".vdb")))
-            ):
+            yield from _named_assets(item, here, visited)
+        return
+    for key, value in node.items():
+        if isinstance(value, str) and (
+            key == "file" or (key == "density" and value.lower().endswith((".npy", ".vdb")))
+        ):
+            try:
                 yield (here / value).resolve()
-            else:
-                yield from _named_assets(value, here)
+            except (OSError, RuntimeError):  # a symlink loop: loading the scene reports it
+                pass
+        else:
+            yield from _named_assets(value, here, visited)
 
 
 def _method_names(val: _Validator, v: Any, p: KeyPath) -> list[str]:
