@@ -744,6 +744,22 @@ def test_loader_hard_cases_from_fuzzing(tmp_path):
         load_scene(tmp_path / "big.yaml")
 
 
+def test_build_stage_errors_name_the_file_a_shape_is_written_in(tmp_path):
+    """Shapes are merged, included ones first: a shape's index in the merged list is not
+    where the user wrote it."""
+    from renderer.engine import build_native_scene
+
+    box = SCENES / "cbox" / "box.yaml"
+    tiny = {"name": "tiny", "type": "rectangle", "material": "white", "emission": 1.0,
+            "transform": [{"scale": 1.0e-9}, {"translate": [0, 1000, 0]}]}  # fmt: skip
+    path = write(tmp_path, {"include": str(box), "shapes": [tiny]})
+    scene = load_scene(path)
+    assert len(scene.shapes) > 1 and scene.shapes[-1].name == "tiny"
+    where = re.escape(f"{path}: shapes[0] (tiny): every triangle of this emitter is degenerate")
+    with pytest.raises(PgiError, match=where):
+        build_native_scene(scene)
+
+
 def test_mie_tables_that_would_take_minutes_are_refused(tmp_path):
     path = write(tmp_path, edit(media={"fog": {"type": "homogeneous", "sigma_t": 1,
                                                "albedo": 0.5}}))  # fmt: skip

@@ -238,9 +238,8 @@ def _refuse_split_emitter(
 ) -> None:
     shape = int(native.per_triangle(scene, list(range(len(scene.shapes))))[triangle])
     names = ["vacuum", *scene.media]
-    name = scene.shapes[shape].name
     raise PgiError(
-        f"{scene.path}: shapes[{shape}]{f' ({name})' if name else ''}: a boundary of a "
+        f"{scene.where_shape(shape)}: a boundary of a "
         f"medium crosses this emitter (part of it lies in {names[media[0] + 1]}, part in "
         f"{names[media[1] + 1]}), but light paths start in one medium per triangle: split the "
         "emitter where the boundary crosses it (pt and mitsuba render it as it is)"

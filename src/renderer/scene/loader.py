@@ -275,9 +275,13 @@ class _Origins:
     def file(self, path: KeyPath) -> Path:
         return self.locate(path)[0]
 
-    def fail(self, path: KeyPath, msg: str) -> NoReturn:
+    def where(self, path: KeyPath) -> str:
+        """The file and key path the merged ``path`` was written at, as messages give them."""
         file, local, note = self.locate(path)
-        raise PgiError(f"{file}{note}: {format_path(local)}: {msg}")
+        return f"{file}{note}: {format_path(local)}"
+
+    def fail(self, path: KeyPath, msg: str) -> NoReturn:
+        raise PgiError(f"{self.where(path)}: {msg}")
 
 
 def _merge_includes(main: Path, doc: dict, origins: _Origins) -> dict:
@@ -1096,6 +1100,7 @@ def _load_scene(path: str | Path, overrides: Sequence[str]) -> Scene:
         description=val.string(doc.get("description", ""), ("description",)).strip(),
         stresses=val.strings(doc.get("stresses", []), ("stresses",)),
         expected_winners=_method_names(val, doc.get("expected_winners", []), ("expected_winners",)),
+        shape_origins=[origins.where(("shapes", i)) for i in range(len(shapes))],
     )  # fmt: skip
 
 

@@ -134,6 +134,18 @@ class Scene:
     description: str = ""
     stresses: list[str] = field(default_factory=list)  # light paths this scene exists to test
     expected_winners: list[str] = field(default_factory=list)  # methods that should win here
+    # Per shape, where it is written ("file: shapes[k]", in its own file), for messages.
+    shape_origins: list[str] = field(default_factory=list)
+
+    def where_shape(self, index: int) -> str:
+        """Where shape ``index`` is written, and its name: for an error message."""
+        where = (
+            self.shape_origins[index]
+            if index < len(self.shape_origins)
+            else f"{self.path}: shapes[{index}]"
+        )
+        name = self.shapes[index].name
+        return f"{where} ({name})" if name else where
 
     @property
     def has_media(self) -> bool:

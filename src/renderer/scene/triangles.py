@@ -25,7 +25,7 @@ def kept_faces(scene: Scene) -> list[np.ndarray]:
         keep = area > DEGENERATE_AREA * size**2
         if shape.emission is not None and not keep.any():
             raise PgiError(
-                f"{scene.path}: shapes[{index}] ({shape.name}): every triangle of this "
+                f"{scene.where_shape(index)}: every triangle of this "
                 f"emitter is degenerate (area below {DEGENERATE_AREA:g} of its squared "
                 "coordinates): it would emit nothing"
             )
