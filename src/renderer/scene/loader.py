@@ -688,20 +688,25 @@ DENSITY_SOURCES = ("npy", "vdb", "perlin", "step")
 
 
 def _read_npy(val: _Validator, file: Path, p: KeyPath) -> np.ndarray:
-    """One array from a .npy file (no pickles)."""
+    """One array from a .npy file (no pickles), mapped, not read: its shape can be checked
+    before a header that claims terabytes allocates anything."""
     if not file.is_file():
         val.fail(p, f"file not found: {file}")
     try:
-        a = np.load(file, allow_pickle=False)
+        a = np.load(file, allow_pickle=False, mmap_mode="r")
     except MemoryError:
         raise
     except Exception as e:  # a garbled header fails in numpy's parser with any error
         lines = str(e).splitlines()
         with open(file, "rb") as f:
             npy = f.read(6) == b"\x93NUMPY"  # numpy says "pickled data" for any other file
-        if "pickle" in str(e):
+        if "pickle" in str(e) or "Python objects" in str(e):
             why = ("it holds Python objects, which pgi does not load; save a numeric array"
                    if npy else "not a numpy .npy file")  # fmt: skip
+        elif "greater than file size" in str(e):  # mapping it found the data short
+            why = "its header's shape needs more data than the file holds (truncated?)"
+        elif "must be positive" in str(e):
+            why = "its header gives a negative size"
         else:
             why = one_line(lines[0]) if lines else "not a numpy .npy file"
         val.fail(p, f"cannot read {file} as a .npy array: {why}")
@@ -720,7 +725,7 @@ def _load_npy(val: _Validator, file: Path, p: KeyPath) -> np.ndarray:
         )
     if max(a.shape) > MAX_GRID_SIDE:
         val.fail(p, f"{file}: shape {list(a.shape)}, at most {MAX_GRID_SIDE} voxels per axis")
-    return a
+    return np.array(a)  # read now that its size is known
 
 
 def _resolution(val: _Validator, v: Any, p: KeyPath) -> tuple[int, int, int]:
