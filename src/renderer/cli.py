@@ -408,10 +408,15 @@ def _stdout_failed(e: StdoutFailed) -> int:
     return 2
 
 
-def _interrupted(e: KeyboardInterrupt) -> int:
+def _end_progress_line() -> None:
+    """A message after a progress bar starts a line of its own."""
     from .progressive import end_progress_line
 
     end_progress_line()
+
+
+def _interrupted(e: KeyboardInterrupt) -> int:
+    _end_progress_line()
     if isinstance(e, Terminated):
         print("pgi: terminated", file=sys.stderr)
         return 128 + signal.SIGTERM
@@ -432,12 +437,11 @@ def main(argv: list[str] | None = None) -> int:
     except StdoutFailed as e:
         return _stdout_failed(e)
     except PgiError as e:
-        from .progressive import end_progress_line
-
-        end_progress_line()
+        _end_progress_line()
         print(f"pgi: error: {e}", file=sys.stderr)
         return 2
     except MemoryError:
+        _end_progress_line()
         print(
             "pgi: error: out of memory (a coarser grid bake resolution, a smaller film, fewer "
             "samples per iteration or fewer photons/beams would fit)",
