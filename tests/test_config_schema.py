@@ -313,3 +313,51 @@ def test_plan_records_the_code_fingerprints_and_refuses_a_pgi_without_them(tmp_p
     old.chmod(0o755)
     with pytest.raises(PlanError, match=r"fingerprint` failed \(exit 2\).*invalid choice"):
         make_plan({**cfg, "pgi": str(old)}, tmp_path, check_methods=True, check_scenes=False)
+
+
+@pytest.mark.parametrize(
+    ("change", "expect"),
+    [
+        # YAML reads these labels as a number and a boolean: a traceback in the rules before.
+        ({"variants": {1: {"method": "pt"}}}, r"variants: 1 is read as a int, not a label"),
+        ({"method_args": {True: []}}, r"method_args: True is read as a bool, not a label"),
+        ({"pgi": 'pgi "unbalanced'}, r"pgi: cannot split .* into a command: No closing"),
+        # pgi names snapshots with 6 significant digits: 1e6 is "1e+06", never "1000000"
+        ({"budgets": [1, 0.1234567]}, r"budgets: 0.1234567 has more than the 6 significant"),
+        ({"budgets": [1000000, 1000001]}, r"budgets: two budgets have the same file tag"),
+        ({"ref_quality_factor": float("nan")}, r"ref_quality_factor: expected a finite number"),
+        (
+            {"results_dir": "README.md/r"},
+            r"results_dir: .*README.md/r cannot be made: .* is a file",
+        ),
+        ({"reports_dir": "README.md"}, r"reports_dir: .*README.md is a file, not a folder"),
+        ({"reports_dir": "/proc/pgi-reports"}, r"reports_dir: cannot create folders in /proc"),
+    ],
+)
+def test_plan_refuses_configs_that_failed_late_or_with_a_traceback(
+    tmp_path: Path, change: dict, expect: str
+) -> None:
+    """Found by fuzzing the configs: each passed the plan and failed in a rule, at the first
+    job that wrote, or silently."""
+    with pytest.raises(PlanError, match=expect):
+        make_plan({**GOOD, **change}, ROOT, check_methods=False, check_scenes=False)
+
+
+def test_plan_names_large_budgets_as_pgi_names_their_snapshots() -> None:
+    from renderer.progressive import snapshot_path
+
+    plan = make_plan({**GOOD, "budgets": [0.5, 1000000]}, ROOT, check_methods=False,
+                     check_scenes=False)  # fmt: skip
+    assert plan.budget_tags == ["0.5", "1e+06"]
+    assert snapshot_path(Path("run.exr"), float(plan.budget_tags[1])).name == "run.t1e+06.exr"
+
+
+def test_plan_gives_up_on_a_pgi_that_never_answers(tmp_path: Path, monkeypatch) -> None:
+    import subprocess
+
+    def never(*args, **kwargs):
+        raise subprocess.TimeoutExpired(args[0], 120)
+
+    monkeypatch.setattr(subprocess, "run", never)
+    with pytest.raises(PlanError, match=r"pgi: cannot run `.* methods`: .*timed out"):
+        make_plan({**GOOD, "pgi": "sleepy-pgi"}, ROOT, check_scenes=False)

@@ -14,6 +14,7 @@ import shlex
 import shutil
 import subprocess
 import sys
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -22,6 +23,7 @@ from typing import Any
 from renderer.cli import PLANNED_PREFIX
 from renderer.errors import PgiError
 from renderer.methods import check_method_parameters, check_overrides
+from renderer.progressive import snapshot_label
 from renderer.scene import load_scene
 
 from .metrics import REF_QUALITY_FACTOR
@@ -149,16 +151,17 @@ class Plan:
         return out + list(self.method_args.get(run.method, ()))
 
 
-def budget_tag(seconds: float) -> str:
-    """How a budget appears in file names: 2 -> "2", 0.5 -> "0.5" (as `pgi render` writes)."""
-    f = float(seconds)
-    return str(int(f)) if f.is_integer() else f"{f:g}"
+# How a budget appears in file names and in --snapshots: as `pgi render` names snapshots.
+budget_tag = snapshot_label
 
 
 def resolve_pgi(setting: str) -> tuple[str, ...]:
     """The command prefix that runs the renderer CLI."""
     if setting != "auto":
-        return tuple(shlex.split(setting))
+        try:
+            return tuple(shlex.split(setting))
+        except ValueError as e:  # an unbalanced quote
+            raise PlanError(f"pgi: cannot split {setting!r} into a command: {e}") from None
     sibling = Path(sys.executable).parent / "pgi"
     if sibling.is_file():
         return (str(sibling),)
@@ -175,8 +178,8 @@ def available_methods(pgi: tuple[str, ...]) -> tuple[list[str], list[str]]:
         proc = subprocess.run(
             [*pgi, "methods"], capture_output=True, text=True, timeout=120, check=False
         )
-    except OSError as e:
-        raise PlanError(f"cannot run `{' '.join(pgi)} methods`: {e}") from e
+    except (OSError, subprocess.TimeoutExpired) as e:
+        raise PlanError(f"pgi: cannot run `{' '.join(pgi)} methods`: {e}") from e
     if proc.returncode != 0:
         raise PlanError(
             f"`{' '.join(pgi)} methods` failed (exit {proc.returncode}): "
@@ -199,8 +202,8 @@ def code_fingerprints(pgi: tuple[str, ...]) -> dict[str, str]:
         proc = subprocess.run(
             [*pgi, "fingerprint"], capture_output=True, text=True, timeout=120, check=False
         )
-    except OSError as e:
-        raise PlanError(f"cannot run `{' '.join(pgi)} fingerprint`: {e}") from e
+    except (OSError, subprocess.TimeoutExpired) as e:
+        raise PlanError(f"pgi: cannot run `{' '.join(pgi)} fingerprint`: {e}") from e
     try:
         code = json.loads(proc.stdout) if proc.returncode == 0 else None
     except json.JSONDecodeError:
@@ -340,6 +343,35 @@ def make_variants(
     return variants
 
 
+def _check_output_folder(key: str, folder: Path) -> None:
+    """The workflow can create ``folder`` and write in it: checked before any job runs, not
+    found by the first job that writes there (or, for the reports, by the last)."""
+    if folder.exists() and not folder.is_dir():
+        raise PlanError(f"{key}: {folder} is a file, not a folder")
+    ancestor = folder
+    while not ancestor.exists() and ancestor != ancestor.parent:
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise PlanError(f"{key}: {folder} cannot be made: {ancestor} is a file")
+    try:  # permission bits do not tell everything (root, special or read-only file systems)
+        with tempfile.TemporaryDirectory(dir=ancestor, prefix=".pgi-probe-"):
+            pass
+    except OSError as e:
+        raise PlanError(f"{key}: cannot create folders in {ancestor}: {e.strerror or e}") from None
+
+
+def _check_labels(config: dict[str, Any]) -> None:
+    """Variant labels and method_args keys are text: YAML reads `1:` or `yes:` as a number or
+    a boolean, which no file name or method id is."""
+    for key in ("variants", "method_args"):
+        for label in config.get(key) or {}:
+            if not isinstance(label, str):
+                raise PlanError(
+                    f"{key}: {label!r} is read as a {type(label).__name__}, not a label: "
+                    f"quote it ('{label}')"
+                )
+
+
 def make_plan(
     config: dict[str, Any],
     root: str | Path,
@@ -352,6 +384,7 @@ def make_plan(
     every scene with its overrides, when `pgi` is this package's own (``pgi: auto``): another
     command may read scenes its own way."""
     root = Path(root).resolve()
+    _check_labels(config)
     pgi = resolve_pgi(str(config.get("pgi", "auto")))
     scenes_dir = root / config.get("scenes_dir", "scenes")
     ref = dict(config.get("reference") or {})
@@ -456,6 +489,17 @@ def make_plan(
     tags = [budget_tag(b) for b in budgets]
     if len(set(tags)) != len(tags):
         raise PlanError(f"budgets: two budgets have the same file tag: {tags}")
+    for b, tag in zip(budgets, tags, strict=True):
+        if float(tag) != b:  # --snapshots gets the tag: the render would stop at float(tag)
+            raise PlanError(
+                f"budgets: {b!r} has more than the 6 significant digits that file names and "
+                f"--snapshots carry; write {tag}"
+            )
+    factor = float(config.get("ref_quality_factor", REF_QUALITY_FACTOR))
+    if not math.isfinite(factor):
+        raise PlanError(f"ref_quality_factor: expected a finite number, got {factor}")
+    for key, default in (("results_dir", "results"), ("reports_dir", "reports")):
+        _check_output_folder(key, root / str(config.get(key, default)))
     report = dict(config.get("report") or {})
     threads = int(config.get("threads", 2))
     plan = Plan(
@@ -475,7 +519,7 @@ def make_plan(
         variants={label: variants[label] for label in labels},
         baseline=baseline,
         primary_metric=str(config.get("primary_metric", "relmse")),
-        ref_quality_factor=float(config.get("ref_quality_factor", REF_QUALITY_FACTOR)),
+        ref_quality_factor=factor,
         title=str(report.get("title", "pgi comparison")),
         viewer_max_size=int(report.get("viewer_max_size", 512)),
         timed_render_slots=int(config.get("timed_render_slots", 1)),

@@ -37,10 +37,15 @@ class RenderSettings:
     overrides: Sequence[str] = ()  # scene overrides the scene was loaded with (for the record)
 
 
+def snapshot_label(seconds: float) -> str:
+    """How a time appears in a snapshot's file name: 4 -> "4", 0.5 -> "0.5", 1e6 -> "1e+06"
+    (six significant digits; the workflow names its budgets' files with this too)."""
+    return f"{float(seconds):g}"
+
+
 def snapshot_path(out: Path, seconds: float) -> Path:
     """out.exr -> out.t4.exr for a 4 s snapshot (out.t0.5.exr for half a second)."""
-    label = f"{seconds:g}"
-    return out.with_name(f"{out.stem}.t{label}{out.suffix}")
+    return out.with_name(f"{out.stem}.t{snapshot_label(seconds)}{out.suffix}")
 
 
 def available_cores() -> int:
