@@ -257,8 +257,8 @@ def test_plan_refuses_a_method_parameter_value_the_render_would_refuse() -> None
         make_plan({**GOOD, "variants": bad}, ROOT)
     with pytest.raises(PlanError, match=r"pt on scene 'cbox': method pt: spp_per_wave must"):
         make_plan({**GOOD, "method_args": {"pt": ["--set", "method.spp_per_wave=abc"]}}, ROOT)
-    # method_args reach the method's variants too, after the variant's own settings
-    wave = {"pt-w": {"method": "pt", "set": ["method.spp_per_wave=2"]}}
+    # method_args reach the method's variants too
+    wave = {"pt-w": {"method": "pt", "set": ["integrator.rr_depth=3"]}}
     args = {"pt": ["--set", "method.spp_per_wave=-1"]}
     with pytest.raises(PlanError, match=r"pt-w on scene 'cbox': .*got -1"):
         make_plan({**GOOD, "methods": ["lt"], "baseline": "lt", "variants": wave,
@@ -361,3 +361,14 @@ def test_plan_gives_up_on_a_pgi_that_never_answers(tmp_path: Path, monkeypatch) 
     monkeypatch.setattr(subprocess, "run", never)
     with pytest.raises(PlanError, match=r"pgi: cannot run `.* methods`: .*timed out"):
         make_plan({**GOOD, "pgi": "sleepy-pgi"}, ROOT, check_scenes=False)
+
+
+def test_plan_refuses_a_variant_setting_that_method_args_would_override() -> None:
+    """method_args come last on the render's command line: the variant would silently be
+    its method unchanged while the report described it by its own setting."""
+    variant = {"pt-w4": {"method": "pt", "set": ["method.spp_per_wave=4"]}}
+    args = {"pt": ["--set", "method.spp_per_wave=2"]}
+    with pytest.raises(PlanError, match=r"variants: 'pt-w4': method.spp_per_wave is also set"):
+        make_plan({**GOOD, "variants": variant, "method_args": args}, ROOT)
+    other = {"pt": ["-q"]}
+    make_plan({**GOOD, "variants": variant, "method_args": other}, ROOT)

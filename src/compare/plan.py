@@ -262,11 +262,11 @@ def check_scene_sets(spec: SceneSpec, methods: list[str]) -> None:
             ) from None
 
 
-def check_method_args(method: str, args: tuple[str, ...]) -> None:
+def check_method_args(method: str, args: tuple[str, ...]) -> list[str]:
     """``method_args`` as `pgi render` would read them, before any job runs: options it knows,
     none the workflow sets itself (``--spp`` would stop a run before its last snapshot), and
     ``--set`` only for method parameters (a scene value would change what the reference
-    shows)."""
+    shows). Returns the parameters they set (``method.KEY``)."""
     import contextlib
     import io
 
@@ -307,12 +307,12 @@ def check_method_args(method: str, args: tuple[str, ...]) -> None:
                 "value belongs in `set`, where the reference sees it too"
             )
         keys.append(key[len("method.") :])
-    if method not in method_ids():
-        return  # announced, not implemented: its parameters are not known yet
-    try:
-        check_method_parameters(method, keys)
-    except PgiError as e:
-        raise PlanError(f"{where}: {e}") from None
+    if method in method_ids():  # else announced, not implemented: parameters not known yet
+        try:
+            check_method_parameters(method, keys)
+        except PgiError as e:
+            raise PlanError(f"{where}: {e}") from None
+    return [f"method.{key}" for key in keys]
 
 
 def make_variants(
@@ -463,8 +463,20 @@ def make_plan(
         k: tuple(str(a) for a in v) for k, v in (config.get("method_args") or {}).items()
     }
     if check_here:
-        for method, args in method_args.items():
-            check_method_args(method, args)
+        args_set = {method: check_method_args(method, args) for method, args in method_args.items()}
+        for label in labels:
+            run = variants[label]
+            # Both reach the render, method_args last: the variant would be its method unchanged.
+            clash = [
+                k
+                for k in (kv.split("=", 1)[0] for kv in run.set)
+                if k in args_set.get(run.method, ())
+            ]
+            if clash:
+                raise PlanError(
+                    f"variants: '{label}': {clash[0]} is also set by method_args: {run.method}, "
+                    "whose value the render would take; set it in one place"
+                )
         for spec in scenes.values():
             check_scene_sets(
                 spec, sorted({variants[m].method if m in variants else m for m in methods})

@@ -285,12 +285,12 @@ def mie_amplitudes(x: float, m: complex, mu: np.ndarray) -> tuple[np.ndarray, np
     return s1, s2
 
 
-@functools.lru_cache(maxsize=8)
 def mie_largest_radius(effective_radius: float, effective_variance: float) -> float:
     """The largest droplet radius mie_phase_table integrates over (micrometres)."""
     return effective_radius * (1 + 8 * np.sqrt(effective_variance))
 
 
+@functools.lru_cache(maxsize=8)
 def mie_phase_table(effective_radius: float = 2.0, effective_variance: float = 0.1,
                     wavelength: float = 0.55, ior: float = 1.333,
                     resolution: int = 2048, radii: int = 64) -> np.ndarray:  # fmt: skip
