@@ -569,6 +569,23 @@ def test_render_refuses_hostile_scene_files_before_looking_for_its_inputs(tmp_pa
     long_name = tmp_path / ("a" * 300 + ".exr")
     r = pgi("render", "cbox", "--method", "pt", "--spp", "1", "-o", str(long_name))
     assert r.returncode == 2 and r.stderr.strip().endswith(": File name too long"), r.stderr
+    # 250 bytes pass the file system, but not the image's temporary name (a traceback after
+    # the render, before)
+    r = pgi(
+        "render", "cbox", "--method", "pt", "--spp", "1", "-o", str(tmp_path / ("a" * 246 + ".exr"))
+    )
+    assert r.returncode == 2 and "file name too long (at most 239 bytes)" in r.stderr, r.stderr
+    # an input file's name too long for the file system: Path.is_file raised
+    looped["shapes"][0]["file"] = "b" * 300 + ".ply"
+    (tmp_path / "long.yaml").write_text(yaml.safe_dump(looped))
+    for command in ("validate", "render"):
+        extra = (
+            ["--method", "pt", "--spp", "1", "-o", str(tmp_path / "y.exr")]
+            if command == "render"
+            else []
+        )
+        r = pgi(command, str(tmp_path / "long.yaml"), *extra)
+        assert r.returncode == 2 and r.stderr.strip().endswith("file name too long"), r.stderr
 
 
 def test_progress_lines(monkeypatch, capsys):

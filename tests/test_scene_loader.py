@@ -720,6 +720,14 @@ def test_vdb_bbox_near_the_end_of_int32_is_refused(tmp_path):
     box = {"type": "vdb", "file": "p.vdb", "bbox": [[2147479552, 0, 0], [2147479552, 0, 0]]}
     doc = edit(media={"fog": {"type": "grid", "density": box, "albedo": 0.5}})
     expect_error(write(tmp_path, doc), "media.fog.density.bbox[0][0]", "<= 1073741824")
+    # The same from a file's own active voxels, with no bbox given.
+    vdb = pytest.importorskip("pyopenvdb")
+    grid = vdb.FloatGrid()
+    grid.name = "density"
+    grid.getAccessor().setValueOn((2147479552, 5, 5), 1.0)
+    vdb.write(str(tmp_path / "far.vdb"), grids=[grid])
+    doc = edit(media={"fog": {"type": "grid", "density": "far.vdb", "albedo": 0.5}})
+    expect_error(write(tmp_path, doc), "media.fog.density", "reaches beyond \\+-2\\^30 voxels")
 
 
 def test_loader_hard_cases_from_fuzzing(tmp_path):
@@ -743,6 +751,16 @@ def test_loader_hard_cases_from_fuzzing(tmp_path):
     # Without Russian roulette nothing ends a path in a closed lossless scene.
     expect_error(path, "integrator.rr_depth", "at most 10000", ["integrator.rr_depth=10001"])
     load_scene(path, ["integrator.rr_depth=100000", "integrator.max_depth=10000"])
+    # Integers past float's range (hex literals may be thousands of digits) and list indices
+    # too long for int(): one line each, not an OverflowError or ValueError.
+    expect_error(
+        path, "camera.fov", "got an integer of about 400 digits", ["camera.fov=" + "9" * 400]
+    )
+    expect_error(
+        path, "film.width", "an integer of about 4816 digits", ["film.width=0x" + "f" * 4000]
+    )
+    with pytest.raises(PgiError, match="expected key.path=value"):
+        load_scene(path, [f"shapes[{'1' * 4400}].x=1"])
     # Python refuses int() of over 4300 digits: a YAML error, not a ValueError.
     with pytest.raises(PgiError, match="an integer of over 4300 digits"):
         load_scene(path, ["film.width=" + "9" * 5000])
@@ -771,8 +789,10 @@ def test_mie_tables_that_would_take_minutes_are_refused(tmp_path):
     path = write(tmp_path, edit(media={"fog": {"type": "homogeneous", "sigma_t": 1,
                                                "albedo": 0.5}}))  # fmt: skip
     huge = "media.fog.phase={type: mie, effective_radius: 50, effective_variance: 0.5, "
-    expect_error(path, "media.fog.phase", "size parameter 20913; with resolution 2048",
-                 [huge + "wavelength: 0.1}"])  # fmt: skip
+    expect_error(path, "media.fog.phase", "size parameter 20913; the table would take minutes",
+                 [huge + "wavelength: 0.1, resolution: 16}"])  # fmt: skip
+    expect_error(path, "media.fog.phase.resolution", "<= 8192",
+                 ["media.fog.phase={type: mie, resolution: 65536}"])  # fmt: skip
     expect_error(path, "media.fog.phase.ior", "<= 10", ["media.fog.phase={type: mie, ior: 1.0e5}"])
 
 

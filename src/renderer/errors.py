@@ -29,6 +29,8 @@ def mitsuba_cause(text: str) -> str:
 
 def shorten_repr(value: Any, limit: int = 40) -> str:
     """The repr of a value quoted in a message, cut to `limit` characters."""
+    if isinstance(value, int) and value.bit_length() > 256:  # repr refuses over 4300 digits
+        return f"an integer of about {int(value.bit_length() * 0.30103)} digits"
     return shorten(repr(value), limit)
 
 

@@ -170,6 +170,9 @@ def check_output_path(path: str | Path) -> Path:
             raise PgiError(f"-o {shorten(str(path), 80)}: {e.strerror or e}") from None
         if is_dir:
             raise PgiError(f"-o {path}: {target} is a directory")
+    # The image is written to a temporary name first, longer than its own by up to 16 bytes.
+    if len(os.fsencode(f".{out.name}.tmp{2**22}.exr")) > 255:
+        raise PgiError(f"-o {shorten(str(path), 80)}: file name too long (at most 239 bytes)")
     parent = out.parent
     while not parent.exists() and parent != parent.parent:
         parent = parent.parent

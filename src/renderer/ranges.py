@@ -19,7 +19,10 @@ def number_problem(
 ) -> str | None:
     """None if ``v`` is a finite number in the range, else what was expected, e.g.
     ``"a number > 0 and <= 1"``."""
-    ok = isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+    # An integer past float's range (a YAML hex literal can be thousands of digits) is no
+    # finite number either; math.isfinite would raise on it.
+    ok = isinstance(v, int | float) and not isinstance(v, bool)
+    ok = ok and (v.bit_length() <= 1000 if isinstance(v, int) else math.isfinite(v))
     if ok and lo is not None:
         ok = v > lo if lo_open else v >= lo
     if ok and hi is not None:

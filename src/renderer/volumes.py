@@ -31,6 +31,9 @@ from renderer.errors import PgiError, one_line
 
 # Voxels per axis of any baked grid (1024^3 float32 is 4 GiB).
 MAX_GRID_SIDE = 1024
+# OpenVDB addresses voxels by 32-bit coordinates, and reading near the end of that range
+# overflows inside OpenVDB (a crash at 2^31 - 4096): boxes keep well inside it.
+MAX_VDB_COORD = 2**30
 
 
 def unit_cube_to_index(lo: np.ndarray, shape: np.ndarray) -> np.ndarray:
@@ -109,6 +112,11 @@ def read_vdb(
         lo, hi = (np.array(c, np.int64) for c in grid.evalActiveVoxelBoundingBox())
     else:
         lo, hi = (np.array(c, np.int64) for c in bbox)
+    if np.any(np.abs(np.concatenate([lo, hi])) > MAX_VDB_COORD):  # OpenVDB would crash
+        raise PgiError(
+            f"{path}: bounding box {lo.tolist()} .. {hi.tolist()} reaches beyond +-2^30 "
+            "voxels, where reading it overflows OpenVDB's 32-bit coordinates"
+        )
     shape = hi - lo + 1
     if np.any(shape <= 0):
         raise PgiError(f"{path}: empty bounding box {lo.tolist()} .. {hi.tolist()}")

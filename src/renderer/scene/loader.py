@@ -11,12 +11,14 @@ overrides, then validate and resolve into model objects.
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import hashlib
 import json
 import os
 import re
 import warnings
-from collections.abc import Hashable, Iterable, Sequence
+from collections.abc import Hashable, Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -43,14 +45,12 @@ from renderer.scene.model import (
     Shape,
     SpotLight,
 )
-from renderer.volumes import MAX_GRID_SIDE
+from renderer.volumes import MAX_GRID_SIDE, MAX_VDB_COORD
 
-# OpenVDB addresses voxels by 32-bit coordinates, and reading near the end of that range
-# overflows inside OpenVDB (a crash at 2^31 - 4096): a VDB `bbox` keeps well inside it.
-MAX_VDB_COORD = 2**30
-# Mie tables: the largest relative index of refraction, and the largest product of the
-# largest droplet's size parameter and the table's resolution (about 5 s of work).
+# Mie tables: the largest relative index of refraction, the largest droplet's size parameter,
+# and its product with the table's resolution (a few seconds of work at most).
 MAX_MIE_IOR = 10.0
+MAX_MIE_SIZE = 2100
 MAX_MIE_WORK = 4.2e6
 # Bounces a path may make before Russian roulette or max_depth can end it.
 MAX_UNROULETTED_DEPTH = 10_000
@@ -352,7 +352,8 @@ def _merge_includes(main: Path, doc: dict, origins: _Origins) -> dict:
 # Sections of named definitions: an override may replace an entry whole, not edit a missing one.
 _NAMED_TABLES = ("media", "materials")
 _KEY = r"[^.\[\]\s=]+"
-_OVERRIDE_PATH = re.compile(rf"{_KEY}(\[\d+\])*(\.{_KEY}(\[\d+\])*)*")
+# An index has at most 9 digits: no list is longer, and int() refuses over 4300.
+_OVERRIDE_PATH = re.compile(rf"{_KEY}(\[\d{{1,9}}\])*(\.{_KEY}(\[\d{{1,9}}\])*)*")
 
 
 def _apply_override(doc: dict, text: str, origins: _Origins) -> None:
@@ -669,16 +670,18 @@ def _phase(val: _Validator, d: Any, p: KeyPath) -> Phase:
     wavelength = val.number(d.get("wavelength", 0.55), p + ("wavelength",), lo=0.1, hi=10)
     # Droplets, not gems: the series' recurrence runs |ior| x size parameter terms.
     ior = val.number(d.get("ior", 1.333), p + ("ior",), lo=1.0, lo_open=True, hi=MAX_MIE_IOR)
-    resolution = val.integer(d.get("resolution", 2048), p + ("resolution",), 16, 1 << 16)
-    # The table costs about (largest droplet's size parameter) x resolution: keep it to seconds.
+    resolution = val.integer(d.get("resolution", 2048), p + ("resolution",), 16, 1 << 13)
+    # The table's series runs over the largest droplet's size parameter for each of 64 radii,
+    # at each of `resolution` angles: both are bounded, and so is their product (measured:
+    # 3-4 s at each corner of these bounds).
     size = 2 * np.pi * mie_largest_radius(radius, variance) / wavelength
-    if size * resolution > MAX_MIE_WORK:
+    if size > MAX_MIE_SIZE or size * resolution > MAX_MIE_WORK:
         val.fail(
             p,
             f"droplets up to {mie_largest_radius(radius, variance):.3g} um at wavelength "
-            f"{wavelength:g} um have size parameter {size:.0f}; with resolution {resolution} the "
-            f"table would take about {size * resolution / MAX_MIE_WORK * 5:.0f} s to compute "
-            f"(size parameter x resolution at most {MAX_MIE_WORK:.2g}, about 5 s)",
+            f"{wavelength:g} um have size parameter {size:.0f}; the table would take minutes "
+            f"to compute (size parameter at most {MAX_MIE_SIZE:g}, and times resolution at "
+            f"most {MAX_MIE_WORK:.2g})",
         )
     table = mie_phase_table(radius, variance, wavelength, ior, resolution)
     return Phase("tabulated", values=np.array(table))
@@ -1022,8 +1025,20 @@ def load_scene(path: str | Path, overrides: Sequence[str] = ()) -> Scene:
     """
     # Overflow in a check's arithmetic is found by the check (a non-finite result), and
     # numpy's warning of it would only add lines before the one-line error.
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"), _names_too_long():
         return _load_scene(path, overrides)
+
+
+@contextlib.contextmanager
+def _names_too_long() -> Iterator[None]:
+    """A file name longer than the file system allows makes even `Path.is_file` raise: that
+    is the user's file name, so a one-line error naming it."""
+    try:
+        yield
+    except OSError as e:
+        if e.errno != errno.ENAMETOOLONG:
+            raise
+        raise PgiError(f"{shorten(str(e.filename), 120)}: file name too long") from None
 
 
 def _load_scene(path: str | Path, overrides: Sequence[str]) -> Scene:
@@ -1158,8 +1173,9 @@ def scene_sources(path: str | Path, overrides: Sequence[str] = ()) -> list[Path]
     resolves it. Files that cannot be found or read are left out (loading the scene reports
     them); a workflow makes these its inputs so that editing any of them reruns what depends
     on the scene."""
-    main = find_scene_file(path).resolve()  # resolved: ".." after a symlink means its target's
-    return [file for file, _ in _scene_documents(main, overrides)]
+    with _names_too_long():
+        main = find_scene_file(path).resolve()  # resolved: ".." after a symlink: its target's
+        return [file for file, _ in _scene_documents(main, overrides)]
 
 
 # Keys only the report reads: editing them changes no image.
