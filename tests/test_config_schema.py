@@ -372,3 +372,18 @@ def test_plan_refuses_a_variant_setting_that_method_args_would_override() -> Non
         make_plan({**GOOD, "variants": variant, "method_args": args}, ROOT)
     other = {"pt": ["-q"]}
     make_plan({**GOOD, "variants": variant, "method_args": other}, ROOT)
+
+
+def test_config_text_that_yaml_11_reads_as_a_number_is_refused(tmp_path: Path) -> None:
+    """The workflow reads configs as YAML 1.1, where `1:30` is 90 (sexagesimal) and `010` is
+    8 (octal): a budget of 90 s and seed 8 nobody wrote (found by fuzzing the configs)."""
+    from compare.plan import check_config_files
+
+    for line, expect in (("budgets: [1, 1:30]", r"budgets\[1\]: '1:30' is read as 90"),
+                         ("seeds: [010]", r"seeds\[0\]: '010' is read as 8")):  # fmt: skip
+        file = tmp_path / "c.yaml"
+        file.write_text(f"scenes: [cbox]\n{line}\n")
+        with pytest.raises(PlanError, match=expect):
+            check_config_files([file])
+    file.write_text("scenes: [cbox]\nbudgets: [1, 90]\nseeds: [8]\nname: '010'\n")
+    check_config_files([file])

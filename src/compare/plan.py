@@ -35,14 +35,42 @@ class PlanError(ValueError):
 
 def check_config_files(files: list[Path]) -> None:
     """Config files read strictly before the workflow's own reader (YAML 1.1) takes them: a
-    key written twice would silently keep its last value."""
-    from renderer.scene.loader import check_yaml_file
+    key written twice would silently keep its last value, and YAML 1.1 reads some text as
+    numbers no one meant (`1:30` is 90, `010` is 8)."""
+    import yaml
+
+    from renderer.scene.loader import check_yaml_file, format_path
 
     for file in files:
         try:
-            check_yaml_file(Path(file))
+            strict = check_yaml_file(Path(file))
         except PgiError as e:
             raise PlanError(str(e)) from None
+        if strict is None:
+            continue
+        try:
+            loose = yaml.safe_load(Path(file).read_text(encoding="utf-8"))
+        except yaml.YAMLError:
+            continue  # the workflow's reader says so itself
+        for path, text, number in _numbers_only_yaml11_sees(strict, loose):
+            raise PlanError(
+                f"{file}: {format_path(path)}: {text!r} is read as {number} by the "
+                f"workflow's YAML 1.1 reader; write the number you mean"
+            )
+
+
+def _numbers_only_yaml11_sees(
+    strict: Any, loose: Any, path: tuple = ()
+) -> list[tuple[tuple, str, float]]:
+    """Leaves that YAML 1.2 reads as text and YAML 1.1 as a number (sexagesimal, octal)."""
+    if isinstance(strict, dict) and isinstance(loose, dict):
+        return [hit for k in strict if k in loose
+                for hit in _numbers_only_yaml11_sees(strict[k], loose[k], (*path, k))]  # fmt: skip
+    if isinstance(strict, list) and isinstance(loose, list) and len(strict) == len(loose):
+        return [hit for i, (s, lo) in enumerate(zip(strict, loose, strict=True))
+                for hit in _numbers_only_yaml11_sees(s, lo, (*path, i))]  # fmt: skip
+    number = isinstance(loose, int | float) and not isinstance(loose, bool)
+    return [(path, strict, loose)] if number and isinstance(strict, str) else []
 
 
 def number_as_text_hint(value: Any, expected: Any = "number") -> str:
