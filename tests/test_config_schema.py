@@ -331,7 +331,7 @@ def test_plan_records_the_code_fingerprints_and_refuses_a_pgi_without_them(tmp_p
             r"results_dir: .*README.md/r cannot be made: .* is a file",
         ),
         ({"reports_dir": "README.md"}, r"reports_dir: .*README.md is a file, not a folder"),
-        ({"reports_dir": "/proc/pgi-reports"}, r"reports_dir: cannot create folders in /proc"),
+        ({"reports_dir": "/proc/pgi-reports"}, r"reports_dir: cannot write in /proc"),
     ],
 )
 def test_plan_refuses_configs_that_failed_late_or_with_a_traceback(

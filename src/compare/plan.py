@@ -14,7 +14,6 @@ import shlex
 import shutil
 import subprocess
 import sys
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -22,6 +21,7 @@ from typing import Any
 # The comment line with which `pgi methods` announces methods not implemented yet.
 from renderer.cli import PLANNED_PREFIX
 from renderer.errors import PgiError
+from renderer.imageio import check_folder_can_be_made
 from renderer.methods import check_method_parameters, check_overrides
 from renderer.progressive import snapshot_label
 from renderer.scene import load_scene
@@ -371,23 +371,6 @@ def make_variants(
     return variants
 
 
-def _check_output_folder(key: str, folder: Path) -> None:
-    """The workflow can create ``folder`` and write in it: checked before any job runs, not
-    found by the first job that writes there (or, for the reports, by the last)."""
-    if folder.exists() and not folder.is_dir():
-        raise PlanError(f"{key}: {folder} is a file, not a folder")
-    ancestor = folder
-    while not ancestor.exists() and ancestor != ancestor.parent:
-        ancestor = ancestor.parent
-    if not ancestor.is_dir():
-        raise PlanError(f"{key}: {folder} cannot be made: {ancestor} is a file")
-    try:  # permission bits do not tell everything (root, special or read-only file systems)
-        with tempfile.TemporaryDirectory(dir=ancestor, prefix=".pgi-probe-"):
-            pass
-    except OSError as e:
-        raise PlanError(f"{key}: cannot create folders in {ancestor}: {e.strerror or e}") from None
-
-
 def _check_labels(config: dict[str, Any]) -> None:
     """Variant labels and method_args keys are text: YAML reads `1:` or `yes:` as a number or
     a boolean, which no file name or method id is."""
@@ -538,8 +521,13 @@ def make_plan(
     factor = float(config.get("ref_quality_factor", REF_QUALITY_FACTOR))
     if not math.isfinite(factor):
         raise PlanError(f"ref_quality_factor: expected a finite number, got {factor}")
+    # Checked before any job runs, not found by the first job that writes there (or, for the
+    # reports, by the last).
     for key, default in (("results_dir", "results"), ("reports_dir", "reports")):
-        _check_output_folder(key, root / str(config.get(key, default)))
+        try:
+            check_folder_can_be_made(root / str(config.get(key, default)))
+        except PgiError as e:
+            raise PlanError(f"{key}: {e}") from None
     report = dict(config.get("report") or {})
     threads = int(config.get("threads", 2))
     plan = Plan(

@@ -173,17 +173,29 @@ def check_output_path(path: str | Path) -> Path:
     # The image is written to a temporary name first, longer than its own by up to 16 bytes.
     if len(os.fsencode(f".{out.name}.tmp{2**22}.exr")) > 255:
         raise PgiError(f"-o {shorten(str(path), 80)}: file name too long (at most 239 bytes)")
-    parent = out.parent
-    while not parent.exists() and parent != parent.parent:
-        parent = parent.parent
-    if not parent.is_dir():
-        raise PgiError(f"-o {path}: {parent} is not a directory")
-    if not os.access(parent, os.W_OK):
-        raise PgiError(f"-o {path}: cannot write in {parent}")
+    try:
+        check_folder_can_be_made(out.parent)
+    except PgiError as e:
+        raise PgiError(f"-o {path}: {e}") from None
+    return out
+
+
+def check_folder_can_be_made(folder: Path) -> None:
+    """``folder`` exists or can be created, and files can be written in it: checked before any
+    work, leaving nothing behind (a probe file is created in the nearest existing folder and
+    removed)."""
+    if folder.exists() and not folder.is_dir():
+        raise PgiError(f"{folder} is a file, not a folder")
+    ancestor = folder
+    while not ancestor.exists() and ancestor != ancestor.parent:
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise PgiError(f"{folder} cannot be made: {ancestor} is a file")
+    if not os.access(ancestor, os.W_OK):
+        raise PgiError(f"cannot write in {ancestor}")
     # Permission bits do not tell everything (a root user, read-only or special file systems).
     try:
-        with tempfile.NamedTemporaryFile(dir=parent, prefix=".pgi-probe-"):
+        with tempfile.NamedTemporaryFile(dir=ancestor, prefix=".pgi-probe-"):
             pass
     except OSError as e:
-        raise PgiError(f"-o {path}: cannot write in {parent}: {e.strerror or e}") from None
-    return out
+        raise PgiError(f"cannot write in {ancestor}: {e.strerror or e}") from None
