@@ -63,7 +63,9 @@ def test_render_writes_image_sidecar_and_snapshots(tmp_path):
         "scene",
     ):
         assert key in info
-    assert info["method"] == "pt" and info["seed"] == 5 and info["render_seconds"] >= 0.4
+    assert info["method"] == "pt" and info["seed"] == 5 and info["nonfinite"] == 0
+    # the final image is the iteration end nearest 0.4 s
+    assert info["render_seconds"] + info["last_iteration_seconds"] / 2 >= 0.4
     assert info["nonfinite"] == 0 and info["rays"] > 0
     snap = json.loads((tmp_path / "fog.t0.2.json").read_text())
     assert snap["snapshot_budget"] == 0.2 and snap["render_seconds"] <= info["render_seconds"]
@@ -466,7 +468,8 @@ def test_validate_version_reference_and_every_method_succeed(tmp_path):
         )
         assert r.returncode == 0, (method, r.stderr)
         info = json.loads(out.with_suffix(".json").read_text())
-        assert info["method"] == method and info["render_seconds"] >= 0.3 and info["spp"] > 0
+        assert info["method"] == method and info["spp"] > 0
+        assert info["render_seconds"] + info["last_iteration_seconds"] / 2 >= 0.3
         assert read_exr(out).mean() > 0, method
 
 
@@ -603,6 +606,54 @@ def test_progress_lines(monkeypatch, capsys):
     bar.update(6.0, 10)
     bar.update(6.0, 10, force=True)
     assert capsys.readouterr().err == "progress 100.0% 6.0 s 10 spp\n"
+
+
+class _ClockedMethod:
+    """A method whose iterations take set lengths on a clock the test controls."""
+
+    clock = [0.0]
+    lengths = [0.7, 0.6, 0.6, 0.6, 0.6]
+
+    def __init__(self, scene, *, seed, threads, params, spp_budget=None) -> None:
+        self.iterations = 0
+
+    def run_iteration(self, iteration: int) -> None:
+        self.clock[0] += self.lengths[iteration]
+        self.iterations += 1
+
+    def image(self) -> np.ndarray:
+        return np.full((4, 4, 3), float(self.iterations))
+
+    def stats(self) -> dict:
+        return {"iterations": self.iterations, "spp": self.iterations, "nonfinite": 0}
+
+
+def test_budgets_end_at_the_nearest_iteration_end(tmp_path, monkeypatch):
+    """With iterations of 0.7, 0.6, 0.6 ... s, the 1 s snapshot is the image at 0.7 s (1.3 s
+    lies further away), the 1.5 s one the image at 1.3 s, and a 2 s budget ends at 1.9 s;
+    always taking the first iteration end past a time would give 1.3, 1.9 and 2.5 s."""
+    import types
+
+    from conftest import load_small
+    from renderer import progressive
+
+    _ClockedMethod.clock[0] = 0.0
+    monkeypatch.setattr(progressive, "get_method", lambda _: _ClockedMethod)
+    monkeypatch.setattr(
+        progressive, "time", types.SimpleNamespace(perf_counter=lambda: _ClockedMethod.clock[0])
+    )
+    settings = progressive.RenderSettings(
+        method="pt", threads=1, time_budget=2.0, snapshots=(1.0, 1.5)
+    )
+    out = tmp_path / "a.exr"
+    final = progressive.render(load_small("cbox", 4, 4), settings, out, progress=False)
+    seen = {
+        label: json.loads(progressive.snapshot_path(out, label).with_suffix(".json").read_text())
+        for label in (1.0, 1.5)
+    }
+    assert [seen[1.0]["iterations"], seen[1.5]["iterations"], final["iterations"]] == [1, 2, 3]
+    assert final["render_seconds"] == pytest.approx(1.9)
+    assert final["last_iteration_seconds"] == pytest.approx(0.6)
 
 
 def test_sigterm_mid_render_cleans_up_as_ctrl_c_does(tmp_path):

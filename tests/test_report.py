@@ -155,7 +155,7 @@ def test_tables_best_flags_and_speedup(tmp_path: Path) -> None:
     md = (tmp_path / "overview.md").read_text()
     assert "**1.15 ± 0.071**" in md and "⚠" in md
     html = (tmp_path / "overview.html").read_text()
-    assert 'class="best"' in html and "refbad" in html and "late" not in html
+    assert 'class="best"' in html and "refbad" in html and "offbudget" not in html
     for name in ("runs", "summary", "convergence", "time_to_error", "stats"):
         assert (tmp_path / f"{name}.csv").is_file()
     conv = tabs["convergence"].set_index(["method", "metric"])
@@ -251,17 +251,19 @@ def test_reference_halves_that_differ_in_size_are_named(tmp_path: Path) -> None:
     assert not (tmp_path / "r.exr").exists()
 
 
-def test_late_snapshots_are_marked(tmp_path: Path) -> None:
-    """A cell whose snapshot came over 10 % after its budget is not equal time: marked."""
+@pytest.mark.parametrize("factor", [1.5, 0.6])
+def test_snapshots_off_budget_are_marked(tmp_path: Path, factor: float) -> None:
+    """A cell whose snapshot came over 10 % after or before its budget is not equal time:
+    marked; one within 10 % is not."""
     runs = _runs()
-    runs["render_seconds"] *= 1.09  # within the allowance: unmarked
-    runs.loc[(runs.method == "lt") & (runs.budget == 1.0), "render_seconds"] = 1.5
+    runs["render_seconds"] *= 1.09 if factor > 1 else 0.91  # within the allowance: unmarked
+    runs.loc[(runs.method == "lt") & (runs.budget == 1.0), "render_seconds"] = factor
     T.write_tables(runs, tmp_path, metric="relmse", baseline="pt")
     md = (tmp_path / "overview.md").read_text()
-    late = [line for line in md.splitlines() if line.startswith("|") and "(at " in line]
-    assert len(late) == 1 and late[0].startswith("| s | lt |") and "(at 1.5 s)" in late[0]
+    off = [line for line in md.splitlines() if line.startswith("|") and "(at " in line]
+    assert len(off) == 1 and off[0].startswith("| s | lt |") and f"(at {factor:g} s)" in off[0]
     html = (tmp_path / "overview.html").read_text()
-    assert html.count('class="late"') == 1 and "snapshot at 1.5 s on average" in html
+    assert html.count('class="offbudget"') == 1 and f"snapshot at {factor:g} s on average" in html
 
 
 @pytest.fixture(scope="module")
@@ -402,11 +404,11 @@ def test_report_files(report: Path) -> None:
     assert "speedup_vs" not in page and "<th>one_minus_ssim</th>" not in page
     # pt's late first snapshot is marked under its image too, and nothing else is
     grid = page[page.index("Equal-time images") :]
-    assert grid.count('class="late"') == 1 and "pt · relMSE" in grid and ">at 1.3 s<" in grid
+    assert grid.count('class="offbudget"') == 1 and "pt · relMSE" in grid and ">at 1.3 s<" in grid
     assert "Mitsuba 3.9.1 volpathmis, two independent halves of 4 spp each" in page
     assert re.search(r"<b>Won</b> at [^:]+: (pt \(as expected|lt \(not among the expected)", page)
     winners = index[index.index("Best method per scene") : index.index("Overview:")]
-    assert winners.count('class="late"') == 1 and ">at 1.3 s<" in winners  # pt at 1 s
+    assert winners.count('class="offbudget"') == 1 and ">at 1.3 s<" in winners  # pt at 1 s
     assert "not an equal-time comparison" in index
     for text in (index, page):  # nothing fetched from the network
         assert not re.search(r"(src|href)=[\"']?(https?:)?//", text)

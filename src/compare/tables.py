@@ -121,14 +121,15 @@ def render_time(d: pd.DataFrame, column: str = "render_seconds") -> pd.Series:
     return d[column].where(d[column] > 0, d["budget"])
 
 
-# A snapshot is written at the first iteration end at or past its budget: a method whose
-# iterations are long overshoots. Beyond this factor a cell is marked as not equal-time.
-OVERSHOOT = 1.1
+# A snapshot is the image at the iteration end nearest its budget: a method whose iterations
+# are long misses the budget by up to half an iteration either way. Beyond this fraction of
+# its budget a cell is marked as not equal-time.
+OFF_BUDGET = 0.1
 
 
-def overshoot(render_seconds: float, budget: float) -> bool:
-    """True if a cell's mean render time exceeds its budget by more than OVERSHOOT."""
-    return bool(render_seconds > OVERSHOOT * budget)
+def off_budget(render_seconds: float, budget: float) -> bool:
+    """True if a cell's mean render time is more than OFF_BUDGET of its budget away from it."""
+    return bool(abs(render_seconds - budget) > OFF_BUDGET * budget)
 
 
 # Two cells are a tie when Welch's t-test at this two-sided level cannot tell their errors
@@ -385,16 +386,16 @@ def overview_cells(summary: pd.DataFrame, metric: str) -> list[dict]:
                 "best": (scene, r.budget, method) in best_set,
                 "ref_ok": bool(r.ref_ok),
                 "seconds": r.render_seconds_mean,
-                "late": overshoot(r.render_seconds_mean, r.budget),
+                "off_budget": off_budget(r.render_seconds_mean, r.budget),
             }
         out.append({"scene": scene, "method": method, "cells": cells})
     return out
 
 
-def late_mark(seconds: float, budget: float) -> str:
-    """HTML mark of a cell whose snapshot came well after its budget."""
+def off_budget_mark(seconds: float, budget: float) -> str:
+    """HTML mark of a cell whose snapshot came well before or after its budget."""
     return (
-        f' <span class="late" title="snapshot at {fmt(seconds)} s on average, budget '
+        f' <span class="offbudget" title="snapshot at {fmt(seconds)} s on average, budget '
         f'{fmt(budget)} s: not equal time">at {fmt(seconds)} s</span>'
     )
 
@@ -407,8 +408,8 @@ def overview_markdown(summary: pd.DataFrame, metric: str) -> str:
         f"scene and budget, and any method Welch's t-test on log errors at {TIE_LEVEL:g} "
         "cannot tell from it with these seeds (a tie); ⚠ = reference error not well below "
         "this error; "
-        f"(at … s) = the snapshot came more than {OVERSHOOT:g}x after its budget, at that "
-        "mean render time",
+        f"(at … s) = the snapshot's mean render time, more than {OFF_BUDGET:.0%} off its "
+        "budget",
         "",
         "| " + " | ".join(head) + " |",
         "|" + "|".join(["---"] * len(head)) + "|",
@@ -422,7 +423,7 @@ def overview_markdown(summary: pd.DataFrame, metric: str) -> str:
                 continue
             t = f"**{c['text']}**" if c["best"] else c["text"]
             t = t if c["ref_ok"] else t + " ⚠"
-            cells.append(t + f" (at {fmt(c['seconds'])} s)" if c["late"] else t)
+            cells.append(t + f" (at {fmt(c['seconds'])} s)" if c["off_budget"] else t)
         lines.append("| " + " | ".join([row["scene"], row["method"], *cells]) + " |")
     return "\n".join(lines) + "\n"
 
@@ -462,8 +463,8 @@ def overview_html(summary: pd.DataFrame, metric: str, link_scenes: bool = False)
                 cls.append("refbad")
                 title = ' title="reference error is not well below this error"'
             mark = ' <span class="flag">⚠</span>' if not c["ref_ok"] else ""
-            if c["late"]:
-                mark += late_mark(c["seconds"], b)
+            if c["off_budget"]:
+                mark += off_budget_mark(c["seconds"], b)
             parts.append(f'<td class="{" ".join(cls)}"{title}>{e(c["text"])}{mark}</td>')
         parts.append("</tr>")
     parts.append("</tbody></table>")

@@ -301,15 +301,16 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("render", help="render a scene with one method")
     scene_arg(r, method_params=True)
     r.add_argument("--method", required=True, help="method id (see `pgi methods`)")
-    r.add_argument("--time", type=_positive(float), help="render-time budget in seconds")
+    r.add_argument("--time", type=_positive(float), help="render-time budget in seconds (the render "
+        "ends at the iteration end nearest it)")
     r.add_argument("--spp", type=_positive(int), help="stop after this many samples per pixel")
     r.add_argument("--threads", type=_positive(int), default=1, help="worker threads (default 1)")
     r.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
     r.add_argument(
         "--snapshots",
         type=_floats,
-        help="comma-separated render times (s) at which to also write snapshots "
-        "(-o out.exr: out.t1.exr, out.t2.exr, ...)",
+        help="comma-separated render times (s) at which to also write snapshots, each the "
+        "image at the iteration end nearest its time (-o out.exr: out.t1.exr, out.t2.exr, ...)",
     )
     r.add_argument("-o", "--output", required=True, help="output .exr (a .json sidecar is written)")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress output")

@@ -124,9 +124,10 @@ def _legend(metric: str, factor: float) -> str:
         f'<span class="flag">⚠</span>: for at least one seed, the reference\'s own relMSE is '
         f"not {factor:g}x below that run's relMSE, so the reference may limit what the cell "
         "can show. "
-        f'<span class="late">at … s</span>: the snapshot came more than {T.OVERSHOOT:g}x after '
-        "its budget, at that mean render time (a method whose iterations are long cannot stop "
-        "sooner), so the cell is not an equal-time comparison.</p>"
+        f'<span class="offbudget">at … s</span>: the snapshot\'s mean render time, more than '
+        f"{T.OFF_BUDGET:.0%} off its budget (a snapshot is the image at the iteration end "
+        "nearest its budget; a method whose iterations are long cannot come closer), so the "
+        "cell is not an equal-time comparison.</p>"
     )
 
 
@@ -186,8 +187,8 @@ def _about_scene(
             if not cell.empty and not bool(cell.ref_ok.iloc[0]):
                 verdict += '; <span class="flag">⚠</span> the reference limits this comparison'
             seconds = float(cell.render_seconds_mean.iloc[0]) if not cell.empty else 0.0
-            if T.overshoot(seconds, last.budget):
-                verdict += "; not equal time:" + T.late_mark(seconds, last.budget)
+            if T.off_budget(seconds, last.budget):
+                verdict += "; not equal time:" + T.off_budget_mark(seconds, last.budget)
             if last.tied_with:
                 verdict += f"; tied with {e(last.tied_with.replace(',', ', '))}"
             parts.append(f" <b>Won</b> at {e(T.budget_label(last.budget))}: {e(won)} ({verdict}).")
@@ -320,12 +321,12 @@ def build_scene_page(spec: dict[str, Any]) -> None:
             for row in I.false_colour(np.logspace(math.log10(lo), math.log10(hi), 256), lo, hi)
         ],
         "reference": I.b64(I.encode_rgbe(ref_v)),
-        # when each image shown was taken: the viewer marks late ones as the grid does
+        # when each image shown was taken: the viewer marks those off budget as the grid does
         "seconds": {
             m: {b: float(seconds[(m, float(b))]) for b in d if (m, float(b)) in seconds.index}
             for m, d in imgs.items()
         },
-        "overshoot": T.OVERSHOOT,
+        "off_budget": T.OFF_BUDGET,
         "images": {
             m: {b: I.b64(I.encode_rgbe(I.downsample(x, vmax))) for b, x in d.items()}
             for m, d in imgs.items()
@@ -372,11 +373,11 @@ def build_scene_page(spec: dict[str, Any]) -> None:
                 continue
             rel = float(err[m][b].mean())
             uri = I.data_uri_png(I.tonemapped_png(x, ev))
-            t = float(seconds.get((m, float(b)), math.nan))  # late: not equal time, say so
-            late = T.late_mark(t, float(b)) if T.overshoot(t, float(b)) else ""
+            t = float(seconds.get((m, float(b)), math.nan))  # off budget: say so
+            off = T.off_budget_mark(t, float(b)) if T.off_budget(t, float(b)) else ""
             body.append(
                 f'<figure><img alt="{e(m)} at {e(b)} s" src="{uri}">'
-                f"<figcaption>{e(m)} · relMSE {T.fmt(rel)}{late}</figcaption></figure>"
+                f"<figcaption>{e(m)} · relMSE {T.fmt(rel)}{off}</figcaption></figure>"
             )
         body.append('<div class="rowlabel">error</div><div></div>')
         for m in methods:
@@ -460,8 +461,8 @@ def build_index(spec: dict[str, Any]) -> None:
             m = r.method.iloc[0]
             flag = "" if ok.get((s, m, b), True) else ' <span class="flag">⚠</span>'
             seconds = float(r.render_seconds_mean.iloc[0])
-            if T.overshoot(seconds, b):
-                flag += T.late_mark(seconds, b)
+            if T.off_budget(seconds, b):
+                flag += T.off_budget_mark(seconds, b)
             ties = str(r.tied_with.iloc[0]).replace(",", ", ")
             tie = f' <span class="note">tied with {e(ties)}</span>' if ties else ""
             win.append(f"<td>{e(m)} ({T.fmt(r.iloc[0, 3])}){tie}{flag}</td>")

@@ -134,15 +134,15 @@
     evOut.textContent = (S.ev >= 0 ? "+" : "") + S.ev.toFixed(2) + " EV";
     var label = name === "reference" ? "reference" : name + " @ " + budget + " s";
     var taken = name === "reference" ? NaN : ((D.seconds || {})[name] || {})[budget];
-    // as in the tables: a late snapshot is not an equal-time image
-    var late = taken > D.overshoot * budget ?
+    // as in the tables: a snapshot far off its budget is not an equal-time image
+    var offBudget = Math.abs(taken - budget) > D.off_budget * budget ?
       " (snapshot at " + taken.toPrecision(3) + " s: not equal time)" : "";
     if (!px) {
       P[0].off.getContext("2d").clearRect(0, 0, W, H);
       P[0].cap.textContent = label + " (missing)";
     } else {
       paintImage(P[0], px);
-      P[0].cap.textContent = label + late;
+      P[0].cap.textContent = label + offBudget;
     }
     paintImage(P[1], ref);
     var err = px ? paintError(P[2], px, ref) : NaN;
