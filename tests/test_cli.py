@@ -608,6 +608,29 @@ def test_progress_lines(monkeypatch, capsys):
     assert capsys.readouterr().err == "progress 100.0% 6.0 s 10 spp\n"
 
 
+def test_ctrl_c_during_start_up_imports_is_one_line():
+    """Ctrl-C while a command still imports its modules: the interrupt handler must not
+    import them again (it used to, for the progress bar, and raised from the broken
+    import instead). Here every import of yaml is interrupted."""
+    code = (
+        "import sys\n"
+        "class Interrupt:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        if name == 'yaml':\n"
+        "            raise KeyboardInterrupt\n"
+        "sys.meta_path.insert(0, Interrupt())\n"
+        "from renderer.cli import main\n"
+        "sys.exit(main(sys.argv[1:]))\n"
+    )
+    r = subprocess.run(
+        [sys.executable, "-c", code, "validate", "cbox"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert r.returncode == 130 and r.stderr == "pgi: interrupted\n", r.stderr
+
+
 class _ClockedMethod:
     """A method whose iterations take set lengths on a clock the test controls."""
 

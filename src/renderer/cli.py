@@ -301,8 +301,11 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("render", help="render a scene with one method")
     scene_arg(r, method_params=True)
     r.add_argument("--method", required=True, help="method id (see `pgi methods`)")
-    r.add_argument("--time", type=_positive(float), help="render-time budget in seconds (the render "
-        "ends at the iteration end nearest it)")
+    r.add_argument(
+        "--time",
+        type=_positive(float),
+        help="render-time budget in seconds (the render ends at the iteration end nearest it)",
+    )
     r.add_argument("--spp", type=_positive(int), help="stop after this many samples per pixel")
     r.add_argument("--threads", type=_positive(int), default=1, help="worker threads (default 1)")
     r.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
@@ -410,10 +413,12 @@ def _stdout_failed(e: StdoutFailed) -> int:
 
 
 def _end_progress_line() -> None:
-    """A message after a progress bar starts a line of its own."""
-    from .progressive import end_progress_line
-
-    end_progress_line()
+    """A message after a progress bar starts a line of its own. Without the progress module
+    loaded no bar was drawn; importing it here could re-enter an import the error (Ctrl-C
+    during start-up) broke off, and raise from that half-initialised module instead."""
+    progressive = sys.modules.get(f"{__package__}.progressive")
+    if progressive is not None:
+        progressive.end_progress_line()
 
 
 def _interrupted(e: KeyboardInterrupt) -> int:
