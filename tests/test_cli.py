@@ -287,6 +287,56 @@ def test_images_that_are_not_whole_exr_files_are_refused(tmp_path):
     assert r.returncode == 2 and "expected channels R, G, B" in r.stderr and "X, Y, Z" in r.stderr
 
 
+def _write_oiio(path: Path, specs: list, images: list[np.ndarray]) -> None:
+    """An EXR of one part per spec (a second part makes a multi-part file)."""
+    import OpenImageIO as oiio
+
+    out = oiio.ImageOutput.create(str(path))
+    assert out.open(str(path), specs), out.geterror()
+    for k, (spec, image) in enumerate(zip(specs, images, strict=True)):
+        if k:
+            assert out.open(str(path), spec, "AppendSubimage"), out.geterror()
+        assert out.write_image(np.ascontiguousarray(image, dtype=np.float32)), out.geterror()
+    out.close()
+
+
+def test_exr_layouts_the_metrics_cannot_use_are_refused(tmp_path):
+    """Channels are matched by name (alpha alone or depth is no grey image; grey with alpha
+    is); a multi-part file is not read as its first part; a data window smaller than the
+    display window is not compared as if it filled it; a folder is named as one."""
+    import OpenImageIO as oiio
+
+    from renderer.imageio import read_exr_and_channels
+
+    def spec(channels: tuple[str, ...], w: int = 8, h: int = 8):
+        s = oiio.ImageSpec(w, h, len(channels), oiio.FLOAT)
+        s.channelnames = channels
+        return s
+
+    ones = np.ones((8, 8, 2))
+    _write_oiio(tmp_path / "ya.exr", [spec(("Y", "A"))], [ones * [0.25, 1.0]])
+    image, channels = read_exr_and_channels(tmp_path / "ya.exr")
+    assert channels == 1 and image.shape == (8, 8, 3) and np.all(image == 0.25)
+    for name in ("A", "Z"):
+        _write_oiio(tmp_path / f"{name}.exr", [spec((name,))], [ones[..., :1]])
+        with pytest.raises(
+            PgiError, match=f"expected channels R, G, B or one grey channel Y.*found {name}$"
+        ):
+            read_exr_and_channels(tmp_path / f"{name}.exr")
+    rgb = spec(("R", "G", "B"))
+    _write_oiio(tmp_path / "parts.exr", [rgb, rgb], [np.ones((8, 8, 3)), 2 * np.ones((8, 8, 3))])
+    with pytest.raises(PgiError, match=r"parts.exr: a multi-part EXR \(2 parts\)"):
+        read_exr_and_channels(tmp_path / "parts.exr")
+    window = spec(("R", "G", "B"), 6, 5)
+    window.x, window.y, window.full_width, window.full_height = 1, 2, 8, 8
+    _write_oiio(tmp_path / "window.exr", [window], [np.ones((5, 6, 3))])
+    with pytest.raises(PgiError, match="data window .* is not its display window"):
+        read_exr_and_channels(tmp_path / "window.exr")
+    (tmp_path / "folder.exr").mkdir()
+    with pytest.raises(PgiError, match="folder.exr: is a folder, expected an image file"):
+        read_exr_and_channels(tmp_path / "folder.exr")
+
+
 def test_concurrent_failed_reads_give_stderr_back(tmp_path):
     """A failed read captures the process's stderr (OpenEXR prints there itself). Reads from
     several threads at once must each get their own one-line error and leave file

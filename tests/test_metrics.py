@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import json
 import math
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -98,6 +101,26 @@ def test_flip_black_reference_does_not_exit() -> None:
     got = m.compare_images(const(8, 8, 1.0), const(8, 8, 0.0))
     assert 0 < got["flip"] <= 1
     assert m.compare_images(const(8, 8, 0.0), const(8, 8, 0.0))["flip"] == 0.0
+
+
+def test_flip_of_a_dim_reference_is_that_of_the_same_images_brighter() -> None:
+    """flip-evaluator exits the process when the reference's peak luminance is below float
+    epsilon (its clamped median then lies above the peak). Scaled up first, a dim pair gets
+    the FLIP of the same pair at ordinary brightness. In a child process: a regression
+    would end the process that runs it."""
+    code = (
+        "import json, numpy as np\n"
+        "from compare import metrics as m\n"
+        "rng = np.random.default_rng(3)\n"
+        "r = rng.uniform(0.1, 1.0, (24, 24, 3))\n"
+        "x = r * (1 + 0.3 * rng.standard_normal(r.shape))\n"
+        "out = [m.compare_images(x * k, r * k)['flip'] for k in (1.0, 1e-8, 5e-7, 1e-30)]\n"
+        "print(json.dumps(out))\n"
+    )
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stdout + r.stderr
+    bright, *dim = json.loads(r.stdout)
+    assert 0 < bright < 1 and dim == pytest.approx([bright] * 3, rel=1e-4)
 
 
 def test_negative_values_accepted() -> None:

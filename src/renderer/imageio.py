@@ -23,8 +23,10 @@ def read_exr(path: str | Path) -> np.ndarray:
 
 
 def read_exr_and_channels(path: str | Path) -> tuple[np.ndarray, int]:
-    """read_exr's image, and how many channels the file stores (1: grey, 3 or 4: colour)."""
+    """read_exr's image, and how many colour channels the file stores (1: grey, 3: RGB)."""
     path = Path(path)
+    if path.is_dir():
+        raise PgiError(f"{path}: is a folder, expected an image file")
     if not path.is_file():
         raise PgiError(f"{path}: no such image file")
     with _stderr_captured() as library_said:
@@ -36,20 +38,34 @@ def read_exr_and_channels(path: str | Path) -> tuple[np.ndarray, int]:
         raise PgiError(f"{path}: cannot read image: {unreadable}")
     if not exr:  # metrics are defined on linear HDR values
         raise PgiError(f"{path}: expected an OpenEXR image, found {buf.file_format_name or '?'}")
+    if buf.nsubimages > 1:  # only the first part would be read: which one was meant is unknown
+        raise PgiError(
+            f"{path}: a multi-part EXR ({buf.nsubimages} parts); expected a single-part image"
+        )
+    spec = buf.spec()
+    window = (spec.x, spec.y, spec.width, spec.height)
+    if window != (spec.full_x, spec.full_y, spec.full_width, spec.full_height):
+        # pixels outside the data window are undefined, and the pixel grid the metrics see
+        # would not be the image's
+        raise PgiError(
+            f"{path}: its data window (origin {spec.x},{spec.y}, {spec.width}x{spec.height}) "
+            f"is not its display window (origin {spec.full_x},{spec.full_y}, "
+            f"{spec.full_width}x{spec.full_height}); expected an image that fills its window"
+        )
     # A truncated or corrupt file is only noticed while its pixels are decoded.
     if pixels is None or buf.has_error or pixels.ndim != 3:
         why = _first_line(buf.geterror()) or "unexpected layout"
         detail = one_line(_first_line("".join(library_said)).replace(f"{path}: ", ""))
         raise PgiError(f"{path}: cannot read pixels: {why}" + (f" ({detail})" if detail else ""))
-    names = tuple(buf.spec().channelnames)
-    channels = pixels.shape[2]
-    if channels == 1:
-        pixels = np.repeat(pixels, 3, axis=2)
-    elif names[:3] == ("R", "G", "B"):  # OpenImageIO puts R, G, B first when a file has them
-        pixels = pixels[:, :, :3]
-    else:  # e.g. XYZ or spectral channels: not the linear RGB every metric assumes
+    names = tuple(spec.channelnames)
+    if names[:3] == ("R", "G", "B"):  # OpenImageIO puts R, G, B first when a file has them
+        pixels, channels = pixels[:, :, :3], 3
+    elif names in (("Y",), ("Y", "A")):  # grey (OpenEXR's luminance channel), alpha dropped
+        pixels, channels = np.repeat(pixels[:, :, :1], 3, axis=2), 1
+    else:  # e.g. XYZ, depth, alpha alone or spectral channels: not what the metrics assume
         raise PgiError(
-            f"{path}: expected channels R, G, B (or one grey channel), found {', '.join(names)}"
+            f"{path}: expected channels R, G, B or one grey channel Y (alpha aside), found "
+            f"{', '.join(names)}"
         )
     return np.ascontiguousarray(pixels, dtype=np.float32), channels
 
