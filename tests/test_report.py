@@ -448,7 +448,9 @@ def test_report_in_headless_chromium(report: Path, tmp_path: Path) -> None:
         " return document.querySelector('#viewer figcaption').textContent; })"
     )
     r = check_page(report / "scene-toy.html", evaluate=(f"{caption}(1)", f"{caption}(2)"))
-    assert r.values == ["pt @ 1 s (snapshot at 1.30 s: not equal time)", "lt @ 1 s"], r.values
+    assert r.values == ["pt @ 1 s (this image's snapshot at 1.30 s: not equal time)", "lt @ 1 s"], (
+        r.values
+    )
     assert r.viewer and r.viewer_key_ok  # key "0" switched the viewer to the reference
     assert r.images >= 9  # colour bar, reference, 2 methods x 2 budgets x (image + error)
 
@@ -664,3 +666,63 @@ def test_index_and_scene_pages_colour_methods_alike(report: Path, tmp_path: Path
     build.build_index(spec)
     # the scene pages' colours: by the study's order of methods, not sorted
     assert seen and all(c == build.method_colours(["pt", "lt"]) for c in seen)
+
+
+def test_a_slope_needs_three_budgets_spanning_four_times() -> None:
+    """Two budgets give two points, which a line always fits: no slope, as measured or with
+    the reference error removed, in the table and in the plots' legends."""
+    from compare.convergence import fit_slope_over_budgets
+    from compare.report.plots import convergence_svg
+
+    runs = _runs()
+    two = runs[runs.budget < 4.0]
+    conv = T.convergence_table(two, ["relmse"]).set_index("method")
+    assert conv.slope.isna().all() and conv.slope_seed_min.isna().all()
+    assert T.convergence_table(runs, ["relmse"]).slope.notna().all()  # control: 1, 2 and 4 s
+    assert math.isnan(fit_slope_over_budgets([1.0, 2.0, 3.0], [1.0, 0.5, 0.33], [1, 2, 3]).slope)
+    svg = convergence_svg(two, "relmse", "two budgets", {"pt": "#000", "lt": "#f00"})
+    assert "pt (slope n/a)" in svg and "slope -" not in svg
+
+
+def test_the_winner_tied_with_an_expected_method_says_so(tmp_path: Path) -> None:
+    from compare.report.build import _about_scene
+
+    scene_file = tmp_path / "scene.yaml"
+    scene_file.write_text("expected_winners: [pt]\n")
+    summary = _summary([("lt", 1.0, 0.1, 2), ("pt", 1.02, 0.1, 2), ("pm", 9.0, 0.1, 2)])
+    text = _about_scene(str(scene_file), "s", summary, "relmse", ["lt", "pt", "pm"], {})
+    assert "lt (not among the expected, but tied with pt, which is)" in text
+    assert "; tied with" not in text  # the tie is said once
+
+
+def test_index_says_what_the_methods_are_and_flags_a_target_near_the_reference(
+    report: Path, tmp_path: Path
+) -> None:
+    """The index names each method by `pgi methods`' description; with mitsuba in the study
+    it says the reference is Mitsuba's too. A time-to-error target taken from a flagged
+    cell carries the flag."""
+    from compare.report.build import _methods_note
+
+    note = _methods_note(["pt", "pt-ratio", "mitsuba"], {"pt-ratio": "pt"})
+    assert note.count("<b>pt</b>: volumetric path tracing") == 1 and "pt-ratio" not in note
+    assert "<b>mitsuba</b>: Mitsuba 3 volpath" in note and "against the pgi methods" in note
+    assert "Mitsuba's volpath too" not in _methods_note(["pt"], {})
+    tables = tmp_path / "tables"
+    tables.mkdir()
+    for csv in (report / "tables").glob("*.csv"):
+        (tables / csv.name).write_bytes(csv.read_bytes())
+    summary = pd.read_csv(tables / "summary.csv")
+    spec = {
+        "reports": str(tmp_path / "out"), "tables": str(tables), "metric": "relmse",
+        "baseline": "pt", "factor": 10, "title": "t", "study": "t", "methods": ["pt", "lt"],
+        "scenes": ["toy"], "refs": {"toy": str(report.parent / "ref.json")},
+    }  # fmt: skip
+    flag = '<th class="scene">toy <span class="flag" title="the target is a flagged cell'
+    for flagged in (False, True):
+        last = (summary.method == "pt") & (summary.budget == summary.budget.max())
+        summary.loc[last, "ref_ok"] = not flagged
+        summary.to_csv(tables / "summary.csv", index=False)
+        build_index(spec)
+        index = (tmp_path / "out" / "index.html").read_text()
+        assert "<b>lt</b>: light tracing" in index
+        assert (flag in index) == flagged

@@ -54,6 +54,22 @@ MIN_FIT_POINTS = 3
 MIN_FIT_SPAN = 4.0
 
 
+def enough_budgets(budgets: Sequence[float] | np.ndarray) -> bool:
+    """Whether points from these budgets can show a slope: three budgets or more, spanning
+    at least MIN_FIT_SPAN (two points always lie on a line, whatever their noise)."""
+    b = np.unique(np.asarray(budgets, dtype=np.float64))
+    return b.size >= MIN_FIT_POINTS and b.max(initial=0) >= MIN_FIT_SPAN * b.min(initial=math.inf)
+
+
+def fit_slope_over_budgets(
+    times: Sequence[float], errors: Sequence[float], budgets: Sequence[float]
+) -> SlopeFit:
+    """fit_slope, NaN (with n = points) unless the points come from enough_budgets."""
+    if not enough_budgets(budgets):
+        return SlopeFit(math.nan, math.nan, math.nan, len(times))
+    return fit_slope(times, errors)
+
+
 def fit_slope_above_floor(
     times: Sequence[float],
     errors: Sequence[float],
@@ -72,12 +88,9 @@ def fit_slope_above_floor(
     if not (math.isfinite(floor) and floor >= 0):
         return SlopeFit(math.nan, math.nan, math.nan, 0)
     keep = (e >= margin * floor) & (t > 0) & np.isfinite(e)
-    # The span is the budgets': a first snapshot a little late (1.003 s) must not drop budgets
-    # of exactly 1-4 s.
-    kept = b[keep]
-    if np.unique(kept).size < MIN_FIT_POINTS or kept.max(initial=0) < MIN_FIT_SPAN * kept.min(
-        initial=math.inf
-    ):
+    # The span is the budgets': a first snapshot a little off its budget (1.003 s) must not
+    # drop budgets of exactly 1-4 s.
+    if not enough_budgets(b[keep]):
         return SlopeFit(math.nan, math.nan, math.nan, int(keep.sum()))
     return fit_slope(t[keep], e[keep] - floor)
 

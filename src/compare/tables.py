@@ -32,7 +32,13 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from .convergence import SlopeFit, bounded, fit_slope, fit_slope_above_floor, time_to_error
+from .convergence import (
+    SlopeFit,
+    bounded,
+    fit_slope_above_floor,
+    fit_slope_over_budgets,
+    time_to_error,
+)
 from .metrics import METRICS
 
 KEYS = ["scene", "method", "budget"]
@@ -191,7 +197,7 @@ def _slope_fits(
 
     def fit(rows: np.ndarray) -> SlopeFit:  # rows by position
         if floor is None:
-            return fit_slope(times[rows], errors[rows])
+            return fit_slope_over_budgets(times[rows], errors[rows], budgets[rows])
         return fit_slope_above_floor(times[rows], errors[rows], floor, budgets=budgets[rows])
 
     seeds = d.groupby("seed").indices.values() if "seed" in d else []
@@ -392,10 +398,12 @@ def overview_cells(summary: pd.DataFrame, metric: str) -> list[dict]:
     return out
 
 
-def off_budget_mark(seconds: float, budget: float) -> str:
-    """HTML mark of a cell whose snapshot came well before or after its budget."""
+def off_budget_mark(seconds: float, budget: float, averaged: bool = True) -> str:
+    """HTML mark of a cell whose snapshot came well before or after its budget (``averaged``:
+    the mean time of the cell's seeds; else one image's own)."""
+    when = "on average" if averaged else "for this image"
     return (
-        f' <span class="offbudget" title="snapshot at {fmt(seconds)} s on average, budget '
+        f' <span class="offbudget" title="snapshot at {fmt(seconds)} s {when}, budget '
         f'{fmt(budget)} s: not equal time">at {fmt(seconds)} s</span>'
     )
 

@@ -72,6 +72,7 @@ rule report_index:
                 "scenes": list(PLAN.scenes),
                 "methods": list(PLAN.methods),
                 "variants": {k: v.describe() for k, v in PLAN.variants.items()},
+                "bases": {m: PLAN.base_method(m) for m in PLAN.methods},
                 "metric": PLAN.primary_metric,
                 "baseline": PLAN.baseline,
                 "factor": PLAN.ref_quality_factor,

@@ -3,8 +3,8 @@
 Uses ``--remote-debugging-pipe`` (JSON messages over file descriptors 3 and 4), so no
 websocket library is needed. Checks: the page loads from file:// without console errors or
 uncaught exceptions, every <img> decodes, the viewer (if any) is ready and responds to a
-number-key press, a screenshot is not blank, and nothing makes the page wider than the window
-(wide tables scroll on their own).
+number-key press (and leaves Ctrl+number to the browser), a screenshot is not blank, and
+nothing makes the page wider than the window (wide tables scroll on their own).
 
     python -m compare.report.browser_check reports/index.html reports/scene-cbox.html
 """
@@ -206,25 +206,23 @@ def check_page(
         res.viewer = bool(ev("!!document.getElementById('viewer')"))
         if res.viewer:
             ready = ev("document.getElementById('viewer').dataset.ready === '1'")
+            ev("document.getElementById('viewer').scrollIntoView()")  # keys act while in view
             before = ev("document.getElementById('viewer').dataset.method")
-            cdp.send(
-                "Input.dispatchKeyEvent",
-                {
-                    "type": "keyDown",
-                    "key": "0",
-                    "code": "Digit0",
-                    "text": "0",
-                    "windowsVirtualKeyCode": 48,
-                },
-                session=sid,
-            )
-            cdp.send(
-                "Input.dispatchKeyEvent",
-                {"type": "keyUp", "key": "0", "code": "Digit0", "windowsVirtualKeyCode": 48},
-                session=sid,
-            )
+
+            def press(digit: int, modifiers: int = 0) -> None:  # CDP modifiers: 2 = Ctrl
+                key = {"key": str(digit), "code": f"Digit{digit}", "modifiers": modifiers}
+                key["windowsVirtualKeyCode"] = 48 + digit
+                cdp.send("Input.dispatchKeyEvent", {"type": "keyDown", "text": str(digit), **key},
+                         session=sid)  # fmt: skip
+                cdp.send("Input.dispatchKeyEvent", {"type": "keyUp", **key}, session=sid)
+
+            press(0)
             after = ev("document.getElementById('viewer').dataset.method")
-            res.viewer_key_ok = bool(ready) and after == "reference" and before != after
+            press(1, modifiers=2)  # Ctrl+1 is the browser's (a tab), not the viewer's
+            kept = ev("document.getElementById('viewer').dataset.method")
+            res.viewer_key_ok = (
+                bool(ready) and after == "reference" and before != after and kept == after
+            )
         res.overflow_px = int(
             ev("document.documentElement.scrollWidth - document.documentElement.clientWidth") or 0
         )

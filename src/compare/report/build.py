@@ -102,12 +102,13 @@ def _slopes_note(reference_error_removed: bool = True) -> str:
     removed = (
         "A noisy reference adds its own error to every measurement, which flattens the curves "
         'of methods that get close to it. "Reference error removed": the fit of (error − '
-        "reference error) over the runs with at least twice the reference error; blank unless "
-        "those runs come from three budgets or more, the largest at least 4x the smallest. "
+        "reference error) over the runs with at least twice the reference error. "
     )
     return (
-        f'<p class="note">{removed if reference_error_removed else ""}The plots\' legends give '
-        "the slopes as measured. Under each slope, as (seeds a to b): the smallest and largest "
+        f'<p class="note">{removed if reference_error_removed else ""}Every slope is left out '
+        "unless the runs it fits come from three budgets or more, the largest at least 4x the "
+        "smallest (two points always lie on a line). The plots' legends give the slopes as "
+        "measured. Under each slope, as (seeds a to b): the smallest and largest "
         "of the slopes fitted to one seed's runs alone (the seeds are independent, the "
         "snapshots of one run are not), left out unless two seeds or more give one. The slope "
         "above is fitted over all runs, so it is not the middle of that range and may lie "
@@ -138,13 +139,39 @@ def _reading_note() -> str:
         "both linear RGB; means run over pixels and channels. relMSE = mean((x − r)² / "
         f"(r² + {EPS:g})): where the reference is darker than about {math.sqrt(EPS):g} it "
         f"weighs squared errors by 1/{EPS:g}, like MSE scaled up, not relative to the pixel. "
-        "MSE = mean((x − r)²). 1 − SSIM compares the images tonemapped to display sRGB "
+        "MSE = mean((x − r)²), RMSE = √MSE. relMSE (trimmed 0.1 %): relMSE without the "
+        "0.1 % of pixels with the largest per-pixel relMSE (fireflies). MAPE = mean(|x − r| / "
+        f"(|r| + {EPS:g})); SMAPE = mean(|x − r| / (|x| + |r| + {EPS:g})), at most 1. "
+        "1 − SSIM compares the images tonemapped to display sRGB "
         "(exposure 0, clipped to [0, 1]); FLIP is HDR-FLIP over its own range of exposures. "
         "Every error is measured against the reference, so "
         "it includes the reference's own error (estimated from its two halves, Reference "
         "quality below; an estimate, so read it as a lower bound). Slopes "
         "marked <i>reference error removed</i> subtract it.</p>"
     )
+
+
+def _methods_note(methods: list[str], bases: dict[str, str]) -> str:
+    """What each method of the study is (`pgi methods`' descriptions), and what comparing
+    Mitsuba with a Mitsuba reference means."""
+    from renderer.methods import describe
+
+    seen = dict.fromkeys(bases.get(m, m) for m in methods)
+    items = []
+    for m in seen:
+        try:
+            items.append(f"<b>{e(m)}</b>: {e(describe(m))}")
+        except KeyError:  # a method this version no longer has: name it only
+            items.append(f"<b>{e(m)}</b>")
+    text = f'<p class="note"><b>Methods.</b> {"; ".join(items)}.'
+    if "mitsuba" in seen:
+        text += (
+            " The reference is Mitsuba's volpath too, with many more samples: mitsuba shares "
+            "its integrator and every convention, while the pgi methods are measured across "
+            "two renderers, so a systematic difference between them (the parity tests bound "
+            "it within their noise) would count against the pgi methods only."
+        )
+    return text + "</p>"
 
 
 # --- scene page -------------------------------------------------------------------------------
@@ -178,7 +205,12 @@ def _about_scene(
             last = best.sort_values("budget").iloc[-1]
             won = str(last.method)
             as_expected = bases.get(won, won) in expected
+            tied = [m for m in str(last.tied_with or "").split(",") if m]
+            tied_expected = [m for m in tied if bases.get(m, m) in expected]
             verdict = "as expected" if as_expected else "not among the expected"
+            if not as_expected and tied_expected:
+                which = "which is" if len(tied_expected) == 1 else "which are"
+                verdict += f", but tied with {e(', '.join(tied_expected))}, {which}"
             cell = summary[
                 (summary.scene == last.scene)
                 & (summary.method == won)
@@ -189,8 +221,9 @@ def _about_scene(
             seconds = float(cell.render_seconds_mean.iloc[0]) if not cell.empty else 0.0
             if T.off_budget(seconds, last.budget):
                 verdict += "; not equal time:" + T.off_budget_mark(seconds, last.budget)
-            if last.tied_with:
-                verdict += f"; tied with {e(last.tied_with.replace(',', ', '))}"
+            others = [m for m in tied if as_expected or m not in tied_expected]
+            if others:
+                verdict += f"; tied with {e(', '.join(others))}"
             parts.append(f" <b>Won</b> at {e(T.budget_label(last.budget))}: {e(won)} ({verdict}).")
         parts.append("</p>")
     return "".join(parts)
@@ -298,10 +331,13 @@ def build_scene_page(spec: dict[str, Any]) -> None:
                     f'<p class="note">Target: {e(_metric_label(ts.metric.iloc[0]))} = '
                     f"{T.fmt(ts.target.iloc[0])} ({e(str(ts.target_from.iloc[0]))}); "
                     "extrapolated = beyond the measured budgets, from the fitted slope (at most "
-                    "4x outside them); bound = only known to be reached by the first budget (<=) "
-                    "or not by the last (>=).</p>"
+                    "4x outside them); bound = only known to be reached by the first budget (≤) "
+                    "or not by the last (≥).</p>"
                 )
             shown = ts.drop(columns=["metric", "target", "target_from"])
+            for col in ("bound", "speedup_bound"):  # as the index writes them
+                if col in shown:
+                    shown[col] = shown[col].map(lambda v: _BOUND_SIGN.get(str(v), "").strip())
             body.append(T.frame_html(shown.rename(columns=_readable_column), 3))
 
     # interactive viewer
@@ -374,7 +410,9 @@ def build_scene_page(spec: dict[str, Any]) -> None:
             rel = float(err[m][b].mean())
             uri = I.data_uri_png(I.tonemapped_png(x, ev))
             t = float(seconds.get((m, float(b)), math.nan))  # off budget: say so
-            off = T.off_budget_mark(t, float(b)) if T.off_budget(t, float(b)) else ""
+            off = (
+                T.off_budget_mark(t, float(b), averaged=False) if T.off_budget(t, float(b)) else ""
+            )
             body.append(
                 f'<figure><img alt="{e(m)} at {e(b)} s" src="{uri}">'
                 f"<figcaption>{e(m)} · relMSE {T.fmt(rel)}{off}</figcaption></figure>"
@@ -434,6 +472,7 @@ def build_index(spec: dict[str, Any]) -> None:
         f"{int(runs.seed.nunique())} seed(s). Generated {now}. Tables as CSV and Markdown in "
         '<a href="tables/">tables/</a>.</p>',
     ]
+    body.append(_methods_note(methods, spec.get("bases") or {}))
     variants: dict[str, str] = spec.get("variants") or {}
     if variants:
         # in the study's order (the spec's JSON has its keys sorted)
@@ -491,8 +530,9 @@ def build_index(spec: dict[str, Any]) -> None:
         body.append(f"<h2>Time to reach the target error, and speed-up vs {e(baseline)}</h2>")
         body.append(
             f'<p class="note">Target per scene: {e(_metric_label(metric))} reached by '
-            f"{e(baseline)} at its largest budget (median final error if {e(baseline)} is not in "
-            "the study). Seconds of render time, interpolated log-log between budgets; "
+            f"{e(baseline)} at its largest budget (⚠ where that cell is flagged: the target "
+            "then lies near the reference's own error, and the times to reach it say little). "
+            "Seconds of render time, interpolated log-log between budgets; "
             "* = extrapolated from the fitted slope (at most 4x outside the measured times; "
             "beyond that ≤ first budget or ≥ last budget, as measured). "
             "Speed-up = baseline time / method time. A method marked ≤ had beaten the target "
@@ -503,8 +543,18 @@ def build_index(spec: dict[str, Any]) -> None:
         rows = ['<table class="data"><thead><tr><th>scene</th>']
         rows += [f"<th>{e(m)}</th>" for m in methods]
         rows.append("</tr></thead><tbody>")
+        last_budget = {
+            s: d.budget.max() for s, d in summary[summary.method == baseline].groupby("scene")
+        }
         for s in scenes:
-            rows.append(f'<tr><th class="scene">{e(s)}</th>')
+            target_ok = bool(ok.get((s, baseline, last_budget.get(s)), True))
+            flag = (
+                ""
+                if target_ok
+                else ' <span class="flag" title="the target is a flagged cell: near the '
+                "reference's own error\">⚠</span>"
+            )
+            rows.append(f'<tr><th class="scene">{e(s)}{flag}</th>')
             for m in methods:
                 r = tte[(tte.scene == s) & (tte.method == m)]
                 if r.empty:

@@ -14,7 +14,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.ticker import NullLocator  # noqa: E402
 
-from ..convergence import fit_slope  # noqa: E402
+from ..convergence import fit_slope_over_budgets  # noqa: E402
 from ..tables import METRIC_LABELS, listed_first, render_time  # noqa: E402
 
 plt.rcParams["svg.fonttype"] = "none"  # keep text as text: smaller, searchable
@@ -54,7 +54,7 @@ def convergence_svg(
         mean, lo, hi = g[metric].mean(), g[metric].min(), g[metric].max()
         drawn = mean > 0
         t, mean, lo, hi = t[drawn], mean[drawn], lo[drawn].where(lo[drawn] > 0), hi[drawn]
-        fit = fit_slope(d["t"].to_numpy(), d[metric].to_numpy())
+        fit = fit_slope_over_budgets(d["t"].to_numpy(), d[metric].to_numpy(), d["budget"])
         slope = f"{fit.slope:+.2f}" if math.isfinite(fit.slope) else "n/a"
         c = colours.get(method, None)
         ax.plot(t, mean, "-", marker=markers[method], color=c, lw=1.6, ms=5, mfc="none",
@@ -65,13 +65,15 @@ def convergence_svg(
         ax.axhline(ref_error, color="0.3", ls="--", lw=1, label="reference's own error")
     ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.set_xlabel("render time [s]")
-    ax.set_ylabel(METRIC_LABELS.get(metric, metric))
-    ax.set_title(title, fontsize=11)
+    # Sizes for the page, which shows the figure at about 560 of its 760 pixels.
+    ax.set_xlabel("render time [s]", fontsize=12)
+    ax.set_ylabel(METRIC_LABELS.get(metric, metric), fontsize=12)
+    ax.tick_params(labelsize=11)
+    ax.set_title(title, fontsize=13)
     ax.grid(True, which="both", alpha=0.25)
     # Beside the axes, where it cannot cover a curve.
     ax.legend(
-        fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1), borderaxespad=0, frameon=False
+        fontsize=11, loc="upper left", bbox_to_anchor=(1.02, 1), borderaxespad=0, frameon=False
     )
     budgets = np.sort(runs["budget"].unique())
     if budgets.size:
@@ -80,7 +82,7 @@ def convergence_svg(
         ax.xaxis.set_minor_locator(NullLocator())
     fig.tight_layout()
     buf = io.StringIO()
-    fig.savefig(buf, format="svg")
+    fig.savefig(buf, format="svg", bbox_inches="tight")  # the legend beside the axes too
     plt.close(fig)
     svg = buf.getvalue()
     svg = svg[svg.find("<svg") :]  # drop the XML prolog for inlining

@@ -136,7 +136,7 @@
     var taken = name === "reference" ? NaN : ((D.seconds || {})[name] || {})[budget];
     // as in the tables: a snapshot far off its budget is not an equal-time image
     var offBudget = Math.abs(taken - budget) > D.off_budget * budget ?
-      " (snapshot at " + taken.toPrecision(3) + " s: not equal time)" : "";
+      " (this image's snapshot at " + taken.toPrecision(3) + " s: not equal time)" : "";
     if (!px) {
       P[0].off.getContext("2d").clearRect(0, 0, W, H);
       P[0].cap.textContent = label + " (missing)";
@@ -205,6 +205,11 @@
   });
   window.addEventListener("mouseup", function () { drag = null; });
   window.addEventListener("keydown", function (ev) {
+    // the browser's own shortcuts (Ctrl+F, Ctrl+0, Alt+Left, ...) stay the browser's, and
+    // keys act on the viewer only while some of it is on screen
+    if (ev.ctrlKey || ev.altKey || ev.metaKey) return;
+    var box = root.getBoundingClientRect();
+    if (box.bottom <= 0 || box.top >= window.innerHeight) return;
     if (ev.target && (ev.target.tagName === "INPUT" || ev.target.tagName === "SELECT") &&
         ev.key !== "Escape") {
       if (!/^[0-9]$/.test(ev.key)) return;
