@@ -855,3 +855,21 @@ def test_an_unread_setting_is_refused_in_any_spelling(tmp_path):
                 "-o", str(out))  # fmt: skip
         assert r.returncode == 2 and "does not read this setting" in r.stderr, r.stderr
     assert not out.exists()
+
+
+def test_dropped_beams_are_said_not_only_recorded(tmp_path):
+    """ppb with room for one beam drops nearly all: the image is biased dark, and the
+    render says so on stderr, not only in the sidecar."""
+    out = tmp_path / "b.exr"
+    r = pgi("render", "cbox-fog", "--method", "ppb", "--spp", "1", "--set",
+            "method.max_beams=1", "-q", *small(), "-o", str(out))  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    dropped = json.loads(out.with_suffix(".json").read_text())["beams_truncated"]
+    assert dropped > 0 and f"note: {dropped:,} beams beyond method.max_beams" in r.stderr
+
+
+def test_expected_slopes_have_no_negative_zero():
+    from renderer.methods.schedules import expected_mse_slopes
+
+    slopes = expected_mse_slopes([(1.0, 2)])  # alpha 1: the radius never shrinks, slope 0
+    assert json.dumps(slopes) == '{"expected_mse_slope": 0.0, "expected_mse_slope_at_edges": 0.0}'

@@ -494,3 +494,16 @@ def test_sun_shining_into_an_unbounded_grid_starts_in_it():
         native = build_native_scene(scene)
         _, per_light = emission_media(native, scene)
         assert per_light.tolist() == [want], extra
+
+
+@pytest.mark.parametrize("method", ["lt", "pm", "sppm", "ppb"])
+def test_light_side_methods_warn_about_near_delta_phase_functions(method, capsys):
+    """At |g| >= 0.999 the light-side methods' images are far too dark at any budget we run
+    (docs/media.md): each says so when it starts; at 0.99 none does."""
+    from renderer.methods import get_method
+
+    for g, warned in ((0.99, False), (-0.999, True)):
+        scene = load_small("cbox-fog", 4, 4, (f"media.fog.phase={{type: hg, g: {g}}}",))
+        get_method(method)(scene, seed=0, threads=1, params={})
+        err = capsys.readouterr().err
+        assert ("media.fog.phase.g = -0.999: lt, pm, sppm and ppb" in err) == warned, err

@@ -104,6 +104,12 @@ def test_memory_bound_follows_the_machine(monkeypatch):
 
     monkeypatch.setattr(params, "physical_memory", lambda: 2**40)  # 1 TiB: 100,000 spp fits
     params.MethodParams("pt", {}, ()).paths_fit_in_memory("spp_per_wave", 25_600_000)
+    # light paths keep their records: 3.3 KB each measured for ppb, bounded by 4 KiB, so on
+    # 24 GiB 2 million fit and 4 million (16 GiB) do not; 12 million used to pass
+    monkeypatch.setattr(params, "physical_memory", lambda: 24 * 2**30)
+    params.MethodParams("ppb", {}, ()).light_paths_fit_in_memory("light_paths", 2_000_000)
+    with pytest.raises(PgiError, match="gives batches of 4,000,000 light paths, about 15 GiB"):
+        params.MethodParams("ppb", {}, ()).light_paths_fit_in_memory("light_paths", 4_000_000)
     monkeypatch.setattr(params, "physical_memory", lambda: 2**30)  # 1 GiB: 1e6 paths do not
     with pytest.raises(PgiError, match="more than half this machine's 1 GiB"):
         params.MethodParams("pt", {}, ()).paths_fit_in_memory("spp_per_wave", 10**6)

@@ -211,6 +211,50 @@ def test_extinction_zero_in_some_channels_is_refused_for_mitsuba():
     to_mitsuba_dict(load_scene("cbox-fog", ["media.fog.sigma_t=0"]))
 
 
+def test_hg_beyond_mitsubas_precision_is_refused_for_mitsuba():
+    """Mitsuba against pt on cbox-fog at g = 0.999 and 0.9999 (image means over 8
+    independent passes or iterations each, z-tests on their standard errors): they agree at
+    0.999 and Mitsuba is over 20 % dark at 0.9999 (single-precision sampling), where pt
+    still matches the limit g -> 1, the same fog with albedo 0 and sigma_t x (1 - 0.8). So
+    the export refuses |g| above 0.999, naming the key."""
+    from parity import ours
+    from renderer.methods.pt import PathTracing
+    from stats import z_p_value
+
+    small = ["film.width=12", "film.height=12"]
+
+    def fog(g: float, *extra: str):
+        return load_scene("cbox-fog", [*small, f"media.fog.phase={{type: hg, g: {g}}}", *extra])
+
+    def image_mean(images: np.ndarray) -> tuple[float, float]:
+        means = images.mean(axis=(1, 2, 3))
+        return float(means.mean()), float(means.std(ddof=1) / np.sqrt(len(means)))
+
+    def agree(a: tuple[float, float], b: tuple[float, float]) -> float:
+        return float(z_p_value(a[0], b[0], np.hypot(a[1], b[1])))
+
+    with pytest.raises(PgiError, match=r"media\.fog\.phase\.g = 0\.9999: Mitsuba's HG"):
+        to_mitsuba_dict(fog(0.9999))
+    with pytest.raises(PgiError, match=r"media\.fog\.phase\.g = -0\.9999"):
+        to_mitsuba_dict(fog(-0.9999))
+    mi = import_mitsuba()
+    scene = mi.load_dict(to_mitsuba_dict(fog(0.999)))  # accepted; set to 0.9999 below
+    params = mi.traverse(scene)
+    key = next(k for k in params.keys() if k.endswith("phase_function.g"))
+    theirs, pt = {}, {}
+    for g in (0.999, 0.9999):
+        params[key] = g
+        params.update()
+        theirs[g] = image_mean(np.stack([mi.render(scene, spp=64, seed=100 + i) for i in range(8)]))
+        pt[g] = image_mean(ours(PathTracing, fog(g), 8, spp_per_wave=64).samples)
+    limit = image_mean(
+        mitsuba(fog(0.5, "media.fog.albedo=0", "media.fog.sigma_t=0.2"), 8, 64).samples
+    )
+    assert agree(theirs[0.999], pt[0.999]) > 1e-4, (theirs, pt)
+    assert agree(pt[0.9999], limit) > 1e-4, (pt, limit)
+    assert theirs[0.9999][0] < 0.8 * pt[0.9999][0], (theirs, pt)
+
+
 def test_reference_passes_and_seeds():
     big = load_scene("cbox")
     assert spp_per_pass(big, 10_000) == 256 and spp_per_pass(big, 7) == 7

@@ -120,7 +120,19 @@ def cmd_render(args: argparse.Namespace) -> int:
         f"(load {info['load_seconds']:.2f} s), "
         f"{info.get('nonfinite', 0)} non-finite samples dropped"
     )
+    for key, why in _BIASED_WHEN_COUNTED.items():
+        if info.get(key):
+            print(f"note: {info[key]:,} {why}", file=sys.stderr)
     return 0
+
+
+# Sidecar counts of work a method had to drop; any at all makes the image biased.
+_BIASED_WHEN_COUNTED = {
+    "beams_truncated": "beams beyond method.max_beams were dropped (beams_truncated): the "
+    "image is biased dark; raise method.max_beams",
+    "beams_escaped": "beams left the scene inside a medium and were dropped (beams_escaped): "
+    "the image is biased dark there",
+}
 
 
 def cmd_reference(args: argparse.Namespace) -> int:

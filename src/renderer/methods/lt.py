@@ -56,7 +56,7 @@ class LightTracing:
         # With an spp budget the default batch is a whole number of paths per pixel: at least
         # the film's size, which can be lowered instead.
         film = " or the film's size" if spp_budget and "light_paths" not in params else ""
-        p.paths_fit_in_memory("light_paths", paths, "light paths", film)
+        p.light_paths_fit_in_memory("light_paths", paths, film)
         max_records = p.integer("max_records", _DEFAULT_MAX_RECORDS, lo=1)
         self.native = build_native_scene(scene)
         self.tracer = EmbreeTracer(self.native.triangles, threads)

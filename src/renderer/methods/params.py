@@ -11,9 +11,12 @@ from ..errors import PgiError
 from ..ranges import INT32_MAX, integer_problem, number_problem
 from ..scene.model import Film
 
-# Memory one path of a batch may take, camera or light (its state, rays, shadow rays and
-# records; measured 200-430 bytes for camera paths): a rough, generous bound.
-PATH_BYTES = 1024
+# Memory one path of a batch may take (its state, rays, shadow rays and records): rough,
+# generous bounds. Measured: 200-470 bytes per camera path; light paths with their vertex,
+# photon and beam records 1.7 KB (pm, sppm), 2.5 KB (lt) and 3.3 KB (ppb), in the peak
+# memory of 2 million paths through cbox-fog.
+CAMERA_PATH_BYTES = 1024
+LIGHT_PATH_BYTES = 4096
 
 
 def physical_memory() -> int:
@@ -86,15 +89,20 @@ class MethodParams:
             raise PgiError(f"method {self.method}: {key} has no effect {why}")
 
     def paths_fit_in_memory(
-        self, key: str, paths: int, what: str = "paths", or_lower: str = ""
+        self,
+        key: str,
+        paths: int,
+        what: str = "camera paths",
+        or_lower: str = "",
+        path_bytes: int = CAMERA_PATH_BYTES,
     ) -> None:
         """Refuse a batch of paths whose state would take over half the machine's memory:
         Linux grants such allocations and then kills the process, with no message."""
         total = physical_memory()
-        if total and paths * PATH_BYTES > total // 2:
+        if total and paths * path_bytes > total // 2:
             raise PgiError(
                 f"method {self.method}: {key} gives batches of {paths:,} {what}, about "
-                f"{paths * PATH_BYTES / 2**30:.0f} GiB, more than half this machine's "
+                f"{paths * path_bytes / 2**30:.0f} GiB, more than half this machine's "
                 f"{total / 2**30:.0f} GiB: lower method.{key}{or_lower}"
             )
 
@@ -102,6 +110,10 @@ class MethodParams:
         """paths_fit_in_memory for a batch of `spp` camera paths per pixel of `film`."""
         paths = spp * film.width * film.height
         self.paths_fit_in_memory(key, paths, "camera paths", " or the film's size")
+
+    def light_paths_fit_in_memory(self, key: str, paths: int, or_lower: str = "") -> None:
+        """paths_fit_in_memory for a batch of light paths, which keep their records."""
+        self.paths_fit_in_memory(key, paths, "light paths", or_lower, LIGHT_PATH_BYTES)
 
     def spp_per_iteration(self, key: str, default: int, spp_budget: int | None) -> int:
         """Samples per pixel of one iteration; with an spp budget it must divide it, so that

@@ -44,7 +44,7 @@ class PhotonMapping:
         p = MethodParams(self.id, params, self.parameters)
         photons = p.integer("photons", DEFAULT_PHOTONS, lo=1)
         spp = p.spp_per_iteration("spp_per_iteration", 1, spp_budget)
-        p.paths_fit_in_memory("photons", photons, "photon paths")
+        p.light_paths_fit_in_memory("photons", photons)
         p.camera_paths_fit_in_memory("spp_per_iteration", spp, scene.film)
         max_records = p.integer("max_records", DEFAULT_MAX_RECORDS, lo=1)
         scale = p.number(

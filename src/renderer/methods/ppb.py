@@ -81,7 +81,7 @@ class ProgressivePhotonBeams:
         p = MethodParams(self.id, params, self.parameters)
         light_paths = p.integer("light_paths", DEFAULT_LIGHT_PATHS, lo=1)
         spp = p.spp_per_iteration("spp_per_iteration", 1, spp_budget)
-        p.paths_fit_in_memory("light_paths", light_paths, "light paths")
+        p.light_paths_fit_in_memory("light_paths", light_paths)
         p.camera_paths_fit_in_memory("spp_per_iteration", spp, scene.film)
         alpha = p.number("alpha", DEFAULT_ALPHA, lo=0, hi=1, lo_open=True)
         radius = p.number("radius", DEFAULT_RADIUS, lo=MIN_RADIUS_FRACTION, hi=MAX_RADIUS_FRACTION)

@@ -13,5 +13,5 @@ def expected_mse_slopes(kernels: list[tuple[float, int]]) -> dict[str, float]:
     slopes = {}
     for key, order in (("expected_mse_slope", 2), ("expected_mse_slope_at_edges", 1)):
         rates = [_core.radius_schedule_mse_slope(a, d, order) for a, d in kernels]
-        slopes[key] = max(rates, default=-1.0)
+        slopes[key] = max(rates, default=-1.0) + 0.0  # + 0.0: no "-0.0" in the sidecar
     return slopes
