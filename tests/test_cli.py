@@ -656,6 +656,9 @@ def test_progress_lines(monkeypatch, capsys):
     bar.update(6.0, 10)
     bar.update(6.0, 10, force=True)
     assert capsys.readouterr().err == "progress 100.0% 6.0 s 10 spp\n"
+    # a render that stops at the iteration end nearest its budget, a little short of it
+    Progress(2.0, None, enabled=True).update(1.9, 7, force=True, finished=True)
+    assert capsys.readouterr().err == "progress 100.0% 1.9 s 7 spp\n"
 
 
 def test_ctrl_c_during_start_up_imports_is_one_line():

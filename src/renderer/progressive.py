@@ -97,7 +97,9 @@ class Progress:
         self._last = 0.0
         self._printed: tuple[float, int] | None = None  # the last plain line's time and spp
 
-    def update(self, seconds: float, spp: int, force: bool = False) -> None:
+    def update(self, seconds: float, spp: int, force: bool = False, finished: bool = False) -> None:
+        """Draws the bar (``force``: now, ending its line); ``finished``: the render is done,
+        whatever the clock says (it may stop half an iteration short of its budget)."""
         global _bar_line_open
         if not self.enabled:
             return
@@ -106,7 +108,7 @@ class Progress:
             frac = seconds / self.total_seconds
         if self.total_spp:
             frac = max(frac, spp / self.total_spp)
-        frac = min(frac, 1.0)
+        frac = 1.0 if finished else min(frac, 1.0)
         if self.tty:
             bar = "#" * int(frac * 30)
             sys.stderr.write(f"\r[{bar:<30}] {frac:6.1%}  {seconds:7.1f} s  {spp} spp")
@@ -230,7 +232,7 @@ def render(
         if notes:
             print(f"note: no final image; {'; '.join(notes)}", file=sys.stderr)
         raise
-    bar.update(render_seconds, method.stats().get("spp", iteration), force=True)
+    bar.update(render_seconds, method.stats().get("spp", iteration), force=True, finished=True)
     if pending:  # --spp was reached first
         print(
             f"note: reached --spp {settings.spp} after {render_seconds:.2f} s; snapshot(s) at "
