@@ -810,3 +810,15 @@ def test_yaml_1_1_number_forms_are_not_read_silently(tmp_path, key, text):
     field = {"camera.fov": "fov: 40", "film.width": "width: 8"}[key]
     doc = yaml.safe_dump(BASE).replace(field, field.split(":")[0] + f": {text}")
     expect_error(write(tmp_path, doc, "file.yaml"), key, f"got '{text}'")
+
+
+def test_a_scene_without_a_name_is_named_by_its_folder_however_it_is_given(tmp_path, monkeypatch):
+    """ "." and "scene.yaml" from inside the folder named the scene "" (the sidecar then
+    recorded no scene)."""
+    folder = tmp_path / "mybox"
+    shutil.copytree(SCENES / "cbox", folder)
+    text = (folder / "scene.yaml").read_text()
+    (folder / "scene.yaml").write_text(re.sub(r"(?m)^name:.*\n", "", text))
+    assert load_scene(folder).name == "mybox"
+    monkeypatch.chdir(folder)
+    assert load_scene(".").name == "mybox" and load_scene("scene.yaml").name == "mybox"

@@ -1115,7 +1115,8 @@ def _load_scene(path: str | Path, overrides: Sequence[str]) -> Scene:
         )
 
     return Scene(
-        name=val.string(doc.get("name", file.parent.name), ("name",)),
+        # resolved: a scene given as "." or "scene.yaml" from its own folder is named too
+        name=val.string(doc.get("name", file.resolve().parent.name), ("name",)),
         path=file, camera=camera, film=film, integrator=integrator,
         materials=materials, media=media, shapes=shapes, lights=lights,
         description=val.string(doc.get("description", ""), ("description",)).strip(),
