@@ -17,7 +17,6 @@ Numbers are reported, never asserted: timings on a shared 2-core machine are noi
 from __future__ import annotations
 
 import argparse
-import time
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +25,7 @@ from compare.convergence import fit_slope
 from compare.metrics import compare_images
 from renderer.imageio import read_exr, write_exr
 from renderer.methods import get_method
+from renderer.progressive import iterate_to
 from renderer.reference import render_reference
 from renderer.scene import load_scene
 
@@ -48,20 +48,13 @@ def reference(scene, name: str, size: int, spp: int, second: bool = False) -> np
 def timed_curve(method_id: str, scene, seconds: float, threads: int, ref: np.ndarray):
     """(times, relMSEs, final image, stats) of one run with snapshots at seconds/8 .. seconds."""
     method = get_method(method_id)(scene, seed=1, threads=threads, params={})
-    checkpoints = [seconds / 8, seconds / 4, seconds / 2, seconds]
     times, errors = [], []
-    elapsed, i = 0.0, 0
-    while checkpoints:
-        start = time.perf_counter()
-        method.run_iteration(i)
-        elapsed += time.perf_counter() - start
-        i += 1
-        if elapsed >= checkpoints[0]:
-            while checkpoints and elapsed >= checkpoints[0]:
-                checkpoints.pop(0)
+    # at the iteration end nearest each checkpoint, as the workflow takes snapshots
+    for _, elapsed in iterate_to(method, [seconds / 8, seconds / 4, seconds / 2, seconds]):
+        if not times or elapsed > times[-1]:  # one end may serve two checkpoints
             times.append(elapsed)
             errors.append(compare_images(method.image(), ref)["relmse"])
-    return times, errors, method.image(), dict(method.stats(), seconds=elapsed)
+    return times, errors, method.image(), dict(method.stats(), seconds=times[-1])
 
 
 def main() -> None:

@@ -37,6 +37,7 @@ from renderer import _core
 from renderer.engine import MAJORANT_CELL, build_native_scene, march_step
 from renderer.methods.mitsuba import MitsubaVolpath
 from renderer.methods.pt import PathTracing
+from renderer.progressive import run_for
 from renderer.scene import load_scene
 
 ESTIMATORS = {"delta": 0, "ratio": 1, "residual": 2, "raymarch": 3}
@@ -136,13 +137,10 @@ def shadow_table(name: str, cell: int, rays: list[Ray], samples: int = 256) -> l
 
 
 def timed(method, seconds: float) -> tuple[np.ndarray, dict, float]:
-    """Iterations until ``seconds`` of render time have passed (loading excluded)."""
-    start = time.perf_counter()
-    i = 0
-    while time.perf_counter() - start < seconds:
-        method.run_iteration(i)
-        i += 1
-    return method.image(), method.stats(), time.perf_counter() - start
+    """Iterations until the end nearest ``seconds`` of render time (loading excluded), as the
+    workflow meets a budget."""
+    elapsed = run_for(method, seconds)
+    return method.image(), method.stats(), elapsed
 
 
 def reference(scene, seconds: float, threads: int) -> tuple[np.ndarray, float]:

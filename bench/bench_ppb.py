@@ -22,7 +22,6 @@ on two cores: run it with the workflow (configs/) rather than this script.
 from __future__ import annotations
 
 import argparse
-import time
 from pathlib import Path
 
 import numpy as np
@@ -31,6 +30,7 @@ from compare.convergence import fit_slope
 from compare.metrics import compare_images
 from renderer.imageio import read_exr, write_exr
 from renderer.methods import get_method
+from renderer.progressive import iterate_to
 from renderer.reference import render_reference
 from renderer.scene import load_scene
 
@@ -45,22 +45,11 @@ def curve(
 ) -> list[dict]:
     """Images of one run at each budget of render time."""
     method = get_method(method_id)(scene, seed=seed, threads=threads, params=params)
-    out, elapsed, i = [], 0.0, 0
-    pending = sorted(budgets)
-    while pending:
-        start = time.perf_counter()
-        method.run_iteration(i)
-        elapsed += time.perf_counter() - start
-        i += 1
-        while pending and elapsed >= pending[0]:
-            out.append(
-                dict(
-                    budget=pending.pop(0),
-                    seconds=elapsed,
-                    image=method.image(),
-                )
-            )
-    return out
+    # at the iteration end nearest each budget, as the workflow takes snapshots
+    return [
+        dict(budget=budget, seconds=elapsed, image=method.image())
+        for budget, elapsed in iterate_to(method, budgets)
+    ]
 
 
 def reference(scene, name: str, size: int, spp: int) -> tuple[np.ndarray, float]:

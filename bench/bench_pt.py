@@ -31,6 +31,7 @@ from renderer.fingerprint import fingerprints
 from renderer.imageio import read_exr, write_exr
 from renderer.methods import get_method
 from renderer.methods.pt import PathTracing
+from renderer.progressive import run_for
 from renderer.reference import render_reference
 from renderer.scene import load_scene
 from renderer.scene.loader import scene_content_digest
@@ -145,12 +146,7 @@ def timed(
     method_id: str, scene, seconds: float, threads: int, seed: int
 ) -> tuple[np.ndarray, dict]:
     method = get_method(method_id)(scene, seed=seed, threads=threads, params={})
-    elapsed, i = 0.0, 0
-    while elapsed < seconds:
-        start = time.perf_counter()
-        method.run_iteration(i)
-        elapsed += time.perf_counter() - start
-        i += 1
+    elapsed = run_for(method, seconds)  # the workflow's rule: the nearest iteration end
     return method.image(), dict(method.stats(), seconds=elapsed)
 
 

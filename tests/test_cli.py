@@ -730,6 +730,14 @@ def test_budgets_end_at_the_nearest_iteration_end(tmp_path, monkeypatch):
     assert [seen[1.0]["iterations"], seen[1.5]["iterations"], final["iterations"]] == [1, 2, 3]
     assert final["render_seconds"] == pytest.approx(1.9)
     assert final["last_iteration_seconds"] == pytest.approx(0.6)
+    # the benchmarks' timed runs follow the same rule
+    _ClockedMethod.clock[0] = 0.0
+    method = _ClockedMethod(None, seed=0, threads=1, params={})
+    assert progressive.run_for(method, 2.0) == pytest.approx(1.9) and method.iterations == 3
+    _ClockedMethod.clock[0] = 0.0
+    method = _ClockedMethod(None, seed=0, threads=1, params={})
+    got = list(progressive.iterate_to(method, [1.5, 1.0, 2.0]))
+    assert got == [(1.0, 0.7), (1.5, pytest.approx(1.3)), (2.0, pytest.approx(1.9))]
 
 
 def test_sigterm_mid_render_cleans_up_as_ctrl_c_does(tmp_path):

@@ -18,9 +18,10 @@ import os
 import platform
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -58,6 +59,29 @@ def reached(target: float, render_seconds: float, last_iteration: float) -> bool
     """Whether the image for `target` seconds is the one at hand: the next iteration end,
     expected `last_iteration` later, would lie further from it than this one."""
     return render_seconds + 0.5 * last_iteration >= target
+
+
+def iterate_to(method: Any, times: Sequence[float]) -> Iterator[tuple[float, float]]:
+    """Runs ``method``'s iterations and yields (time, render seconds) at the iteration end
+    nearest each of ``times``, as ``render`` takes its snapshots, for measurements that write
+    no files (bench/); it stops after the last. One iteration end may serve several times."""
+    pending = sorted(float(t) for t in times)
+    elapsed = last = 0.0
+    iteration = 0
+    while pending:
+        start = time.perf_counter()
+        method.run_iteration(iteration)
+        last = time.perf_counter() - start
+        elapsed += last
+        iteration += 1
+        while pending and reached(pending[0], elapsed, last):
+            yield pending.pop(0), elapsed
+
+
+def run_for(method: Any, seconds: float) -> float:
+    """``method``'s iterations up to the end nearest ``seconds`` of render time (at least
+    one); returns the render seconds they took."""
+    return [elapsed for _, elapsed in iterate_to(method, [seconds])][-1]
 
 
 def available_cores() -> int:
