@@ -61,21 +61,32 @@ def reached(target: float, render_seconds: float, last_iteration: float) -> bool
     return render_seconds + 0.5 * last_iteration >= target
 
 
-def iterate_to(method: Any, times: Sequence[float]) -> Iterator[tuple[float, float]]:
-    """Runs ``method``'s iterations and yields (time, render seconds) at the iteration end
-    nearest each of ``times``, as ``render`` takes its snapshots, for measurements that write
-    no files (bench/); it stops after the last. One iteration end may serve several times."""
-    pending = sorted(float(t) for t in times)
-    elapsed = last = 0.0
+def timed_iterations(method: Any) -> Iterator[tuple[float, float]]:
+    """Runs ``method``'s iterations one after another, yielding after each the render seconds
+    so far and that iteration's own; what the caller does between them is not counted."""
+    elapsed = 0.0
     iteration = 0
-    while pending:
+    while True:
         start = time.perf_counter()
         method.run_iteration(iteration)
         last = time.perf_counter() - start
         elapsed += last
         iteration += 1
+        yield elapsed, last
+
+
+def iterate_to(method: Any, times: Sequence[float]) -> Iterator[tuple[float, float]]:
+    """Runs ``method``'s iterations and yields (time, render seconds) at the iteration end
+    nearest each of ``times``, as ``render`` takes its snapshots, for measurements that write
+    no files (bench/); it stops after the last. One iteration end may serve several times."""
+    pending = sorted(float(t) for t in times)
+    if not pending:
+        return
+    for elapsed, last in timed_iterations(method):
         while pending and reached(pending[0], elapsed, last):
             yield pending.pop(0), elapsed
+        if not pending:
+            return
 
 
 def run_for(method: Any, seconds: float) -> float:
@@ -223,23 +234,20 @@ def render(
     pending = list(snapshots)
     written: list[Path] = []
     try:
-        while True:
-            spp = method.stats().get("spp", iteration)
-            if budget is not None and reached(budget, render_seconds, last_iteration):
-                break
-            if settings.spp is not None and spp >= settings.spp:
-                break
-            start = time.perf_counter()
-            method.run_iteration(iteration)
-            last_iteration = time.perf_counter() - start
-            render_seconds += last_iteration
+        # Budgets and --spp are at least one iteration away at the start: run, then check.
+        for render_seconds, last_iteration in timed_iterations(method):
             iteration += 1
-            bar.update(render_seconds, method.stats().get("spp", iteration))
+            spp = method.stats().get("spp", iteration)
+            bar.update(render_seconds, spp)
             while pending and reached(pending[0], render_seconds, last_iteration):
                 label = pending.pop(0)
                 path = snapshot_path(out, label)
                 write(path, sidecar(render_seconds, label))
                 written.append(path)
+            if budget is not None and reached(budget, render_seconds, last_iteration):
+                break
+            if settings.spp is not None and spp >= settings.spp:
+                break
     except BaseException:
         # Snapshots already written are whole renders of their budgets (image and sidecar):
         # they stay, and the user is told which; the final image is never written.
