@@ -43,13 +43,14 @@ def check_config_files(files: list[Path]) -> None:
 
     for file in files:
         try:
-            strict = check_yaml_file(Path(file))
+            read = check_yaml_file(Path(file))
         except PgiError as e:
             raise PlanError(str(e)) from None
-        if strict is None:
+        if read is None:
             continue
+        strict, text = read
         try:
-            loose = yaml.safe_load(Path(file).read_text(encoding="utf-8"))
+            loose = yaml.safe_load(text)  # the same text, as YAML 1.1 reads it
         except yaml.YAMLError:
             continue  # the workflow's reader says so itself
         for path, text, number in _numbers_only_yaml11_sees(strict, loose):

@@ -235,15 +235,16 @@ def _parse_yaml_file(path: Path, text: str) -> Any:
         raise PgiError(f"{where}: invalid YAML: {problem}") from None
 
 
-def check_yaml_file(path: Path) -> Any:
+def check_yaml_file(path: Path) -> tuple[Any, str] | None:
     """Reads a YAML file as scene files are read, for files another reader loads (workflow
     configs): a key given twice is a PgiError naming the line, not the last one silently kept.
-    Returns the document (None if the file cannot be read: that reader says so itself)."""
+    Returns the document and the text it was read from (None if the file cannot be read:
+    that reader says so itself)."""
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError):
         return None
-    return _parse_yaml_file(path, text)
+    return _parse_yaml_file(path, text), text
 
 
 # --------------------------------------------------------------------------- key paths, origins
