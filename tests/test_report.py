@@ -452,6 +452,20 @@ def test_report_in_headless_chromium(report: Path, tmp_path: Path) -> None:
         r.values
     )
     assert r.viewer and r.viewer_key_ok  # key "0" switched the viewer to the reference
+    # Keys act on the viewer only while it is on screen: scrolled away, "1" leaves it alone.
+    press_one = (
+        "(function () { var v = document.getElementById('viewer'); window.PGI_VIEWER.select(0);"
+        " window.dispatchEvent(new KeyboardEvent('keydown', {key: '1'}));"
+        " return [v.getBoundingClientRect().top < window.innerHeight, v.dataset.method]; })"
+    )
+    r = check_page(
+        report / "scene-toy.html",
+        evaluate=(
+            "document.getElementById('viewer').scrollIntoView()", f"{press_one}()",
+            "window.scrollTo(0, 0)", f"{press_one}()",
+        ),
+    )  # fmt: skip
+    assert r.values[1] == [True, "pt"] and r.values[3] == [False, "reference"], r.values
     assert r.images >= 9  # colour bar, reference, 2 methods x 2 budgets x (image + error)
 
 
