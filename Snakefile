@@ -31,7 +31,7 @@ from compare.plan import (  # noqa: E402
     PlanError,
     check_config_files,
     make_plan,
-    number_as_text_hint,
+    schema_error_message,
 )
 
 
@@ -56,11 +56,7 @@ except WorkflowError as e:
     why = e.__cause__ or e.__context__  # the schema's own error
     if not isinstance(why, jsonschema.ValidationError):
         raise
-    key = "".join(f"[{k}]" if isinstance(k, int) else f".{k}" for k in why.absolute_path)
-    hint = ""
-    if why.validator == "type":  # a number that arrived as text (YAML 1.1)?
-        hint = number_as_text_hint(why.instance, why.validator_value)
-    sys.exit(f"config ({CONFIG_FILES}): {key.lstrip('.') or 'top level'}: {why.message}{hint}")
+    sys.exit(f"config ({CONFIG_FILES}): {schema_error_message(why)}")
 
 try:
     PLAN = make_plan(config, workflow.basedir)

@@ -12,7 +12,7 @@ pytest.importorskip("snakemake")
 from snakemake.exceptions import WorkflowError  # noqa: E402
 from snakemake.utils import validate  # noqa: E402
 
-from compare.plan import PlanError, make_plan  # noqa: E402
+from compare.plan import PlanError, make_plan, schema_error_message  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SCHEMA = str(ROOT / "configs" / "schema.yaml")
@@ -50,6 +50,41 @@ def test_bad_config_rejected(change: dict, expect: str) -> None:
     cfg = {**copy.deepcopy(GOOD), **change}
     with pytest.raises(WorkflowError, match=expect):
         validate(cfg, SCHEMA)
+
+
+@pytest.mark.parametrize(
+    ("change", "line"),
+    [
+        (
+            {"scenes": [{"nam": "cbox"}]},
+            "scenes[0]: Additional properties are not allowed ('nam' was unexpected) "
+            "(scenes[0] may also be a string)",
+        ),
+        (
+            {"scenes": [{"name": "cbox", "reference_spp": 0}]},
+            "scenes[0].reference_spp: 0 is less than the minimum of 1 "
+            "(scenes[0] may also be a string)",
+        ),
+        (
+            {"scenes": ["cb ox"]},
+            "scenes[0]: 'cb ox' does not match '^[A-Za-z0-9_.-]+$' "
+            "(scenes[0] may also be a mapping)",
+        ),
+        ({"scenes": [3]}, "scenes[0]: 3 is not a string or a mapping"),
+        ({"methods": "some"}, "methods: 'some' is not one of ['all'] (methods may also be a list)"),
+        ({"methods": ["p t"]}, "methods[0]: 'p t' does not match"),
+        ({"budgets": ["5e-1"]}, "write 0.5)"),
+        ({"budget": [1]}, "top level: Additional properties are not allowed ('budget' was"),
+    ],
+)
+def test_schema_error_names_the_form_that_was_meant(change: dict, line: str) -> None:
+    """A key that takes one of several forms (oneOf) used to fail with "... is not valid under
+    any of the given schemas", naming neither what was wrong nor what would do."""
+    cfg = {**copy.deepcopy(GOOD), **change}
+    with pytest.raises(WorkflowError) as caught:
+        validate(cfg, SCHEMA)
+    message = schema_error_message(caught.value.__cause__ or caught.value.__context__)
+    assert message.startswith(line) if line.startswith(tuple("tms")) else line in message, message
 
 
 def test_missing_required_key() -> None:

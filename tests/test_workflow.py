@@ -230,6 +230,7 @@ def test_bad_config_fails_clearly(study: Path) -> None:
         ({"budget": [1]}, "top level: Additional properties are not allowed ('budget' was"),
         ({"scenes": []}, "scenes: [] should be non-empty"),
         ({"methods": ["pt", "nosuch"]}, "methods: unknown method(s) nosuch"),
+        ({"methods": "pt"}, "methods: 'pt' is not one of ['all'] (methods may also be a list)"),
     ]:
         write_config(study / "bad.yaml", study / "scenes", **over)
         p = snakemake(study, "--configfile", "bad.yaml", "-n", check=False)

@@ -18,6 +18,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from jsonschema.exceptions import best_match
+
 # The comment line with which `pgi methods` announces methods not implemented yet.
 from renderer.cli import PLANNED_PREFIX
 from renderer.errors import PgiError
@@ -98,6 +100,59 @@ def number_as_text_hint(value: Any, expected: Any = "number") -> str:
         f" (the workflow reads configs as YAML 1.1, where {value} is text, not a number: "
         f"write {number!r})"
     )
+
+
+# How a schema type reads in a message.
+_TYPE_WORDS = {
+    "array": "a list",
+    "object": "a mapping",
+    "string": "a string",
+    "integer": "an integer",
+    "number": "a number",
+    "boolean": "true or false",
+}
+
+
+def _type_words(expected: Any) -> list[str]:
+    names = [expected] if isinstance(expected, str) else list(expected)
+    return [_TYPE_WORDS.get(n, n) for n in names]
+
+
+def _key_path(error: Any) -> str:
+    key = "".join(f"[{k}]" if isinstance(k, int) else f".{k}" for k in error.absolute_path)
+    return key.lstrip(".") or "top level"
+
+
+def schema_error_message(error: Any) -> str:
+    """One line for a config's schema error (a ``jsonschema.ValidationError``): the key path
+    and what is wrong there. Where a key may take one of several forms (``oneOf``), the
+    schema's own message ("is not valid under any of the given schemas") names neither; this
+    reports what is wrong with the form the value has (a mapping missing ``name``, a string
+    that is no scene name) and says which other forms the key takes."""
+    other_forms = ""
+    while error.context:
+        # Each form (branch of the oneOf) the value failed, by its index in the oneOf.
+        branches: dict[Any, list] = {}
+        for e in error.context:
+            branches.setdefault(e.relative_schema_path[0], []).append(e)
+        # A form that wants another type is not the one meant: drop it, but say it exists.
+        wanted: list[str] = []
+        meant = []
+        for errors in branches.values():
+            type_errors = [e for e in errors if e.validator == "type" and not e.relative_path]
+            if type_errors:
+                wanted += _type_words(type_errors[0].validator_value)
+            else:
+                meant += errors
+        if not meant:
+            return f"{_key_path(error)}: {error.instance!r} is not {' or '.join(wanted)}"
+        if wanted:
+            other_forms = f" ({_key_path(error)} may also be {' or '.join(wanted)})"
+        error = best_match(meant)
+    message = error.message
+    if error.validator == "type":  # a number that arrived as text (YAML 1.1)?
+        message += number_as_text_hint(error.instance, error.validator_value)
+    return f"{_key_path(error)}: {message}{other_forms}"
 
 
 @dataclass(frozen=True)
