@@ -541,6 +541,13 @@ def test_unreadable_files_are_one_line_errors(tmp_path):
         np.lib.format.write_array_header_1_0(f, header)
         f.write(b"x" * 64)
     expect_error(write(tmp_path, doc), "media.smoke.density", "d.npy as a .npy array: its header")
+    # A header whose shape is smaller than the data: numpy maps the first voxels silently.
+    with open(tmp_path / "d.npy", "wb") as f:
+        header = {"descr": "<f4", "fortran_order": False, "shape": (2, 2, 2)}
+        np.lib.format.write_array_header_1_0(f, header)
+        f.write(np.ones(27, np.float32).tobytes())
+    msg = expect_error(write(tmp_path, doc), "media.smoke.density", "76 bytes more than")
+    assert "shape [2, 2, 2] of float32" in msg
 
 
 def test_a_broken_included_section_is_not_hidden(tmp_path):

@@ -717,6 +717,13 @@ def _read_npy(val: _Validator, file: Path, p: KeyPath) -> np.ndarray:
         val.fail(p, f"cannot read {file} as a .npy array: {why}")
     if not isinstance(a, np.ndarray):
         val.fail(p, f"{file}: expected one array, got {type(a).__name__}")
+    extra = file.stat().st_size - (getattr(a, "offset", 0) + a.nbytes)
+    if isinstance(a, np.memmap) and extra > 0:  # numpy maps the header's shape, ignores the rest
+        val.fail(
+            p,
+            f"cannot read {file} as a .npy array: it holds {extra} bytes more than its header's "
+            f"shape {list(a.shape)} of {a.dtype} needs (written with another shape?)",
+        )
     return a
 
 
