@@ -682,6 +682,31 @@ def test_index_and_scene_pages_colour_methods_alike(report: Path, tmp_path: Path
     assert seen and all(c == build.method_colours(["pt", "lt"]) for c in seen)
 
 
+def test_budgets_that_share_one_image_count_once() -> None:
+    """A method whose iteration outlasts the budgets (Mitsuba at 3 s per iteration against
+    budgets of 1, 2 and 4 s) hands each budget the same image: one point per seed, no slope,
+    where the fit used to take each seed's image three times and print a slope of seed noise
+    (found by a review: +1.05 beside a single point)."""
+    from compare.report.plots import convergence_svg
+
+    runs = _runs()
+    slow = runs.method == "lt"
+    runs.loc[slow, "iterations"] = 1.0
+    runs.loc[slow, "render_seconds"] = 3.0 + 0.1 * runs.seed[slow]
+    runs.loc[slow, "relmse"] = 0.5 * runs.seed[slow]  # one image per seed
+    conv = T.convergence_table(runs, ["relmse"]).set_index("method")
+    assert math.isnan(conv.loc["lt", "slope"]) and conv.loc["lt", "points"] == 2
+    assert conv.loc["pt", "slope"] == pytest.approx(-1.0) and conv.loc["pt", "points"] == 6
+    svg = convergence_svg(runs, "relmse", "one image", {"pt": "#000", "lt": "#f00"})
+    assert "lt (slope n/a)" in svg and "pt (slope -1.00)" in svg
+    # Two budgets of three share an image: two distinct images span 1 to 4 s, still no slope.
+    runs = _runs()
+    runs.loc[runs.budget == 2.0, "iterations"] = 10.0
+    runs.loc[runs.budget == 2.0, "render_seconds"] = 1.0
+    shared = T.one_row_per_image(runs[runs.method == "pt"])
+    assert sorted(shared.budget) == [1.0, 1.0, 4.0, 4.0]
+
+
 def test_a_slope_needs_three_budgets_spanning_four_times() -> None:
     """Two budgets give two points, which a line always fits: no slope, as measured or with
     the reference error removed, in the table and in the plots' legends."""

@@ -15,7 +15,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.ticker import NullLocator  # noqa: E402
 
 from ..convergence import fit_slope_over_budgets  # noqa: E402
-from ..tables import METRIC_LABELS, listed_first, render_time  # noqa: E402
+from ..tables import METRIC_LABELS, listed_first, one_row_per_image, render_time  # noqa: E402
 
 plt.rcParams["svg.fonttype"] = "none"  # keep text as text: smaller, searchable
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "h")
@@ -54,7 +54,8 @@ def convergence_svg(
         mean, lo, hi = g[metric].mean(), g[metric].min(), g[metric].max()
         drawn = mean > 0
         t, mean, lo, hi = t[drawn], mean[drawn], lo[drawn].where(lo[drawn] > 0), hi[drawn]
-        fit = fit_slope_over_budgets(d["t"].to_numpy(), d[metric].to_numpy(), d["budget"])
+        one = one_row_per_image(d)
+        fit = fit_slope_over_budgets(one["t"].to_numpy(), one[metric].to_numpy(), one["budget"])
         slope = f"{fit.slope:+.2f}" if math.isfinite(fit.slope) else "n/a"
         c = colours.get(method, None)
         ax.plot(t, mean, "-", marker=markers[method], color=c, lw=1.6, ms=5, mfc="none",
