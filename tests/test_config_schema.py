@@ -152,6 +152,36 @@ def test_plan_refuses_methods_it_cannot_run(tmp_path: Path, change: dict, expect
         make_plan(cfg, tmp_path, check_scenes=False)
 
 
+@pytest.mark.parametrize(
+    ("change", "expect"),
+    [
+        (
+            {"variants": {"pt-delta": {"method": "pt", "set": [
+                "integrator.estimator=delta", "integrator.estimator=ratio"]}}},
+            r"variants: 'pt-delta': set: integrator.estimator is set twice",
+        ),
+        ({"set": ["film.width=8", " film.width =16"]}, r"^set: film.width is set twice"),
+        (
+            {"scenes": [{"name": "cbox", "set": ["film.width=8", "film.width=16"]}]},
+            r"scenes: 'cbox': set: film.width is set twice",
+        ),
+    ],
+)  # fmt: skip
+def test_plan_refuses_a_key_set_twice_in_one_list(
+    tmp_path: Path, change: dict, expect: str
+) -> None:
+    """The render would take the last value silently: a variant that sets its estimator to
+    delta and then back to ratio is plain pt under a misleading label (found by a review)."""
+    cfg = {**GOOD, "scenes_dir": str(_scenes(tmp_path)), "pgi": _fake_pgi(tmp_path), **change}
+    with pytest.raises(PlanError, match=expect):
+        make_plan(cfg, tmp_path, check_scenes=False)
+    # A scene's own `set` may override the study's for that scene.
+    cfg.update(set=["film.width=8"], scenes=[{"name": "cbox", "set": ["film.width=16"]}])
+    cfg.pop("variants", None)
+    plan = make_plan(cfg, tmp_path, check_scenes=False)
+    assert plan.scene_set_args("cbox") == ["--set", "film.width=8", "--set", "film.width=16"]
+
+
 def test_plan_accepts_a_baseline_among_its_methods(tmp_path: Path) -> None:
     cfg = {**GOOD, "scenes_dir": str(_scenes(tmp_path)), "pgi": _fake_pgi(tmp_path)}
     plan = make_plan(

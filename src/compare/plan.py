@@ -14,6 +14,7 @@ import shlex
 import shutil
 import subprocess
 import sys
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -399,6 +400,19 @@ def check_method_args(method: str, args: tuple[str, ...]) -> list[str]:
     return [f"method.{key}" for key in keys]
 
 
+def check_one_value_per_key(overrides: Sequence[str], where: str) -> tuple[str, ...]:
+    """A list of `key=value` overrides that sets one key twice keeps the last value silently (a
+    variant `pt-delta` setting the estimator to delta and then to ratio is plain pt under a
+    misleading label): refused, naming the key."""
+    seen: set[str] = set()
+    for kv in overrides:
+        key = str(kv).split("=", 1)[0].strip()
+        if key in seen:
+            raise PlanError(f"{where}: {key} is set twice; the render would take the last value")
+        seen.add(key)
+    return tuple(overrides)
+
+
 def make_variants(
     config: dict[str, Any], avail: list[str], planned: list[str], check: bool
 ) -> dict[str, VariantSpec]:
@@ -407,8 +421,11 @@ def make_variants(
     variants: dict[str, VariantSpec] = {}
     listed = [] if config["methods"] == "all" else list(config["methods"])
     for label, entry in (config.get("variants") or {}).items():
-        spec = VariantSpec(method=str(entry["method"]), set=tuple(entry.get("set") or ()))
         where = f"variants: '{label}'"
+        spec = VariantSpec(
+            method=str(entry["method"]),
+            set=check_one_value_per_key(entry.get("set") or (), f"{where}: set"),
+        )
         if label in listed or (check and label in avail + planned):
             raise PlanError(f"{where}: the label is a method id of `pgi methods`; pick another")
         if check and spec.method not in avail:
@@ -455,7 +472,7 @@ def make_plan(
     pgi = resolve_pgi(str(config.get("pgi", "auto")))
     scenes_dir = root / config.get("scenes_dir", "scenes")
     ref = dict(config.get("reference") or {})
-    global_set = tuple(config.get("set") or ())
+    global_set = check_one_value_per_key(config.get("set") or (), "set")
     # Scenes and arguments are checked here only when `pgi` is this package's own: another
     # command may read them its own way.
     check_here = check_scenes and str(config.get("pgi", "auto")) == "auto"
@@ -478,7 +495,9 @@ def make_plan(
         scenes[name] = SceneSpec(
             name=name,
             path=folder,
-            set=global_set + tuple(entry.get("set") or ()),
+            # A scene's own `set` may override the study's for that scene.
+            set=global_set
+            + check_one_value_per_key(entry.get("set") or (), f"scenes: '{name}': set"),
             reference_spp=int(entry.get("reference_spp", default_spp)),
         )
         if check_here:
