@@ -74,6 +74,10 @@ def test_bad_config_rejected(change: dict, expect: str) -> None:
         ({"methods": "some"}, "methods: 'some' is not one of ['all'] (methods may also be a list)"),
         ({"methods": ["p t"]}, "methods[0]: 'p t' does not match"),
         ({"budgets": ["5e-1"]}, "write 0.5)"),
+        (
+            {"budgets": ["1"]},
+            "budgets[0]: '1' is not of type 'number' (it is quoted: write 1 without",
+        ),
         ({"budget": [1]}, "top level: Additional properties are not allowed ('budget' was"),
     ],
 )

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import yaml
 from jsonschema.exceptions import best_match
 
 # The comment line with which `pgi methods` announces methods not implemented yet.
@@ -97,6 +98,12 @@ def number_as_text_hint(value: Any, expected: Any = "number") -> str:
         number = int(number)  # 1.0e3 -> 1000, which fits an integer key too
     if expected == "integer" and not isinstance(number, int):
         return ""
+    try:  # text that YAML 1.1 itself reads as a number was quoted
+        quoted = not isinstance(yaml.safe_load(value), str)
+    except yaml.YAMLError:
+        quoted = False
+    if quoted:
+        return f" (it is quoted: write {number!r} without quotes)"
     return (
         f" (the workflow reads configs as YAML 1.1, where {value} is text, not a number: "
         f"write {number!r})"
