@@ -287,6 +287,11 @@ def test_plan_loads_each_scene_with_each_variant() -> None:
         (["--bogus-flag"], r"method_args: pt: .*unrecognized arguments: --bogus-flag"),
         (["--spp", "64"], r"method_args: pt: --spp: the workflow sets this itself"),
         (["--meth", "lt"], r"method_args: pt: --method: the workflow sets this itself"),
+        # at their defaults, or the workflow's own values, they used to pass (a review)
+        (["--seed", "0"], r"method_args: pt: --seed: the workflow sets this itself"),
+        (["--thr", "1"], r"method_args: pt: --threads: the workflow sets this itself"),
+        (["--method", "pt"], r"method_args: pt: --method: the workflow sets this itself"),
+        (["-o", "<workflow>.exr"], r"method_args: pt: -o/--output: the workflow sets this"),
         (["--set", "film.width=8"], r"method_args: pt: --set film.width=8: .*method.KEY=VALUE"),
         (["--set", "method.nosuch=1"], r"method_args: pt: method pt: unknown parameter"),
     ],

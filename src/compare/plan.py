@@ -354,6 +354,37 @@ def check_scene_sets(spec: SceneSpec, methods: list[str]) -> None:
             ) from None
 
 
+# `pgi render` options the workflow gives every render itself.
+_WORKFLOW_OPTIONS = {
+    "method": "--method",
+    "time": "--time",
+    "spp": "--spp",
+    "snapshots": "--snapshots",
+    "seed": "--seed",
+    "threads": "--threads",
+    "output": "-o/--output",
+}
+
+
+def _workflow_options_in(args: tuple[str, ...]) -> list[str]:
+    """Which of _WORKFLOW_OPTIONS ``args`` give, also at their default value (``--seed 0``) or
+    abbreviated (``--thr 1``): parsed on their own, with those options optional and unset."""
+    import argparse
+
+    from renderer.cli import build_parser
+
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    render = sub.choices["render"]
+    unset = object()
+    for action in render._actions:
+        if action.dest in _WORKFLOW_OPTIONS:
+            action.required, action.default = False, unset
+    parsed = render.parse_args(["scene", *args])
+    return [
+        option for dest, option in _WORKFLOW_OPTIONS.items() if getattr(parsed, dest) is not unset
+    ]
+
+
 def check_method_args(method: str, args: tuple[str, ...]) -> list[str]:
     """``method_args`` as `pgi render` would read them, before any job runs: options it knows,
     none the workflow sets itself (``--spp`` would stop a run before its last snapshot), and
@@ -378,16 +409,7 @@ def check_method_args(method: str, args: tuple[str, ...]) -> list[str]:
         raise PlanError(
             f"{where}: {why[-1] if why else 'not valid `pgi render` arguments'}"
         ) from None
-    owned = {
-        "--method": parsed.method != method,
-        "--time": parsed.time is not None,
-        "--spp": parsed.spp is not None,
-        "--snapshots": parsed.snapshots is not None,
-        "--seed": parsed.seed != 0,
-        "--threads": parsed.threads != 1,
-        "-o/--output": parsed.output != output,
-    }
-    given = [option for option, set_here in owned.items() if set_here]
+    given = _workflow_options_in(args)
     if given:
         raise PlanError(f"{where}: {', '.join(given)}: the workflow sets this itself")
     keys = []
