@@ -661,9 +661,19 @@ def test_mesh_files_that_hold_no_usable_triangles(tmp_path):
     (tmp_path / "noise.ply").write_bytes(np.random.default_rng(0).bytes(300))
     # Mitsuba's cause, not the plugin context it wraps it in (which filled the message)
     (tmp_path / "short.ply").write_text(header + "end_header\n0 0 0\n1 0 0\n3 0 1 2\n")
+    # A quad: Mitsuba's PLY loader reads triangles only, and its message did not say so.
+    quad = header.replace("vertex 3", "vertex 4") + "end_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n"
+    (tmp_path / "quad.ply").write_text(quad + "4 0 1 2 3\n")
+    binary = quad.replace("ascii", "binary_little_endian").split("end_header")[0].encode()
+    binary += (
+        b"end_header\n" + np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], "<f4").tobytes()
+    )
+    (tmp_path / "binquad.ply").write_bytes(binary + b"\x04" + np.arange(4, dtype="<i4").tobytes())
+    triangles_only = "PLY faces of three vertices only"
     cases = [("oob.ply", "refers to vertex 7, but there are 3"), ("words.obj", "no triangles"),
              ("noise.ply", "cannot load"),
-             ("short.ply", 'short.ply: could not parse "int" value for field')]  # fmt: skip
+             ("short.ply", 'short.ply: could not parse "int" value for field'),
+             ("quad.ply", triangles_only), ("binquad.ply", triangles_only)]  # fmt: skip
     for name, pattern in cases:
         doc = edit(shapes=[*BASE["shapes"], {"type": "mesh", "file": name, "material": "white"}])
         expect_error(write(tmp_path, doc, f"{name}.yaml"), "shapes[2].file", pattern)

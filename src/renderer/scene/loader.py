@@ -909,6 +909,10 @@ def _medium(val: _Validator, name: str, d: Any) -> Medium:
     return Medium(name, kind, sigma_t, albedo, scale, phase, density, to_world, source)
 
 
+# What Mitsuba's PLY loader says of faces with four vertices or more (ASCII, binary).
+_PLY_NOT_TRIANGLES = ("trailing tokens after end of PLY file", "is this a triangle mesh")
+
+
 def _mesh_file(val: _Validator, v: Any, p: KeyPath) -> tuple[np.ndarray, np.ndarray]:
     """Triangles of a .ply/.obj file as Mitsuba's own loader reads them."""
     file = val.o.file(p).parent / val.string(v, p)
@@ -928,6 +932,8 @@ def _mesh_file(val: _Validator, v: Any, p: KeyPath) -> tuple[np.ndarray, np.ndar
     except Exception as e:  # Mitsuba raises RuntimeError with its parser's message
         lines = str(e).strip().splitlines()
         why = one_line(mitsuba_cause(lines[-1])) if lines else f"not a readable {file.suffix} mesh"
+        if file.suffix.lower() == ".ply" and any(s in why for s in _PLY_NOT_TRIANGLES):
+            why += " (Mitsuba reads PLY faces of three vertices only: triangulate the mesh)"
         val.fail(p, f"cannot load {file}: {why}")
     v = np.array(mesh.vertex_positions_buffer(), dtype=np.float64).reshape(-1, 3)
     f = np.array(mesh.faces_buffer(), dtype=np.int64).reshape(-1, 3)
