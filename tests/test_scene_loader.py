@@ -688,6 +688,7 @@ def test_mesh_files_that_hold_no_usable_triangles(tmp_path):
         (b"", "cannot read"),
         (np.ones((3, 3)), "a table of shape \\[3, 3\\]"),
         ("0 1\n90 2\n180 5\n", "a table of shape \\[3, 2\\]"),  # angles beside values
+        ("0.5 0.8\n2.0\n9.0\n", "lines hold different counts of numbers; write one number per"),
         ("", "holds no numbers"),
     ],
 )

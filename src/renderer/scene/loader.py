@@ -641,7 +641,13 @@ def _phase(val: _Validator, d: Any, p: KeyPath) -> Phase:
                         warnings.simplefilter("ignore", UserWarning)
                         values = np.loadtxt(file, ndmin=1)
                 except (OSError, ValueError) as e:
-                    val.fail(p + ("file",), f"cannot read {file}: {one_line(str(e))}")
+                    why = one_line(str(e))
+                    if "number of columns changed" in why:  # numpy's words for ragged rows
+                        why = "its lines hold different counts of numbers"
+                    val.fail(
+                        p + ("file",),
+                        f"cannot read {file}: {why}; write one number per line, or all on one",
+                    )
                 if values.size == 0:
                     val.fail(p + ("file",), f"{file} holds no numbers")
             if values.dtype.kind not in "fiu":
