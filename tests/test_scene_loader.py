@@ -840,3 +840,21 @@ def test_a_scene_without_a_name_is_named_by_its_folder_however_it_is_given(tmp_p
     assert load_scene(folder).name == "mybox"
     monkeypatch.chdir(folder)
     assert load_scene(".").name == "mybox" and load_scene("scene.yaml").name == "mybox"
+
+
+def test_a_value_of_nested_aliases_is_quoted_without_expanding_it(tmp_path):
+    """Eight levels of YAML aliases, ten deep each, make a 1 KB file a list of 10^8 strings:
+    the message quoting it built its whole repr first (10 s and 750 MB; one level more,
+    7.5 GB). Quoted now with bounded depth and length: the check allocates little."""
+    import tracemalloc
+
+    lines = ["stresses:", "  - &a0 [x, x, x, x, x, x, x, x, x, x]"]
+    lines += [f"  - &a{i} [{', '.join([f'*a{i - 1}'] * 10)}]" for i in range(1, 7)]
+    doc = yaml.safe_load("\n".join(lines))
+    tracemalloc.start()
+    try:
+        msg = expect_error(write(tmp_path, edit(**doc)), "stresses", "expected a list of strings")
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert len(msg) < 300 and peak < 20e6, (msg, peak)

@@ -1,6 +1,7 @@
 """User-facing errors: the CLI prints them as one line and exits non-zero."""
 
 import re
+import reprlib
 from typing import Any
 
 
@@ -28,10 +29,16 @@ def mitsuba_cause(text: str) -> str:
 
 
 def shorten_repr(value: Any, limit: int = 40) -> str:
-    """The repr of a value quoted in a message, cut to `limit` characters."""
+    """The repr of a value quoted in a message, cut to `limit` characters. Built with bounded
+    depth and length: YAML aliases nested a few levels deep make a small file a value whose
+    full repr takes gigabytes (the check of `stresses: [*a8]` once took 10 s and 750 MB)."""
     if isinstance(value, int) and value.bit_length() > 256:  # repr refuses over 4300 digits
         return f"an integer of about {int(value.bit_length() * 0.30103)} digits"
-    return shorten(repr(value), limit)
+    bounded = reprlib.Repr()
+    bounded.maxlevel = 4
+    bounded.maxlist = bounded.maxtuple = bounded.maxdict = bounded.maxset = limit
+    bounded.maxstring = bounded.maxother = bounded.maxlong = 2 * limit + 10
+    return shorten(bounded.repr(value), limit)
 
 
 def caused_by_interrupt(error: BaseException | None) -> KeyboardInterrupt | None:
