@@ -35,7 +35,10 @@ rule tables:
         convergence=f"{REP}/tables/convergence.csv",
         tte=f"{REP}/tables/time_to_error.csv",
         stats=f"{REP}/tables/stats.csv",
+        best=f"{REP}/tables/best.csv",
         overview=f"{REP}/tables/overview.md",
+        overview_html=f"{REP}/tables/overview.html",
+        tables_md=f"{REP}/tables/tables.md",
     params:
         out=f"{REP}/tables",
         metric=PLAN.primary_metric,
