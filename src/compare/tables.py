@@ -270,6 +270,9 @@ def time_to_error_table(summary: pd.DataFrame, metric: str, baseline: str) -> pd
             last = base.dropna(subset=[col]).sort_values("budget").iloc[-1]
             target = float(last[col])
             target_from = f"{baseline} at {last.budget:g} s"
+            seconds = float(last.get("render_seconds_mean", math.nan))
+            if math.isfinite(seconds) and off_budget(seconds, float(last.budget)):
+                target_from += f" (its image at {seconds:.3g} s)"
         else:
             finals = d.sort_values("budget").groupby("method")[col].last()
             target = float(finals.median())
