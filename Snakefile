@@ -46,6 +46,8 @@ if not workflow.overwrite_configfiles:
 # A config that cannot run stops here, before any job: one line naming the config file(s)
 # and the key (not the schema, not a traceback), non-zero exit.
 CONFIG_FILES = ", ".join(str(f) for f in workflow.overwrite_configfiles) or "configs/default.yaml"
+if getattr(getattr(workflow, "config_settings", None), "config", None):
+    CONFIG_FILES += " and --config"  # a key given there is in none of the files
 try:
     check_config_files(workflow.overwrite_configfiles)
 except PlanError as e:

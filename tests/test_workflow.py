@@ -259,6 +259,11 @@ def test_bad_config_fails_clearly(study: Path) -> None:
         out = (p.stdout + p.stderr).strip().splitlines()
         assert p.returncode != 0 and len(out) == 1, out
         assert out[0].startswith("config (") and "bad.yaml): " + line in out[0], out
+    # A key given by --config is in no file: the line says where it came from.
+    write_config(study / "bad.yaml", study / "scenes")
+    p = snakemake(study, "--configfile", "bad.yaml", "--config", "threads=0", "-n", check=False)
+    line = "bad.yaml and --config): threads: 0 is less than the minimum of 1"
+    assert p.returncode != 0 and line in p.stdout + p.stderr, p.stdout + p.stderr
 
 
 def test_config_numbers_as_text_and_repeated_keys_are_explained(study: Path) -> None:
