@@ -392,6 +392,37 @@ def test_camera_rays_in_a_medium_reach_any_scale(tmp_path, distance, far_light):
     assert np.all(np.abs(mean - p) < 4 * np.sqrt(p * (1 - p) / n)), mean
 
 
+def test_a_grid_far_smaller_than_its_bounding_shape_stays_empty_outside(tmp_path):
+    """A grid's medium is empty outside the grid's box, however far its bounding shape
+    reaches. Mitsuba's heterogeneous medium by default weights a path by tr / pdf of the whole
+    segment to the next surface at the grid's majorant; both underflow float32 once that
+    optical depth passes ~87, and the path went black (found by a review). A grid has grey
+    extinction here, so the export turns the spectral form off. An absorbing grid of optical
+    depth 1 lies between the camera and a lamp 389 units behind it, all inside one shape
+    (majorant optical depth 195 from the grid to the lamp): the lamp shows exp(-1) of its
+    radiance, not 0."""
+    np.save(tmp_path / "d.npy", np.ones((2, 2, 2), np.float32))
+    doc = {
+        "camera": {"origin": [0, 0, 150], "target": [0, 0, 0], "up": [0, 1, 0], "fov": 0.2,
+                   "medium": "grid"},
+        "film": {"width": 4, "height": 4},
+        "media": {"grid": {"type": "grid", "density": "d.npy", "sigma_t": 0.5, "albedo": 0,
+                           "transform": [{"scale": 2}, {"translate": [-1, -1, -1]}]}},
+        "materials": {"boundary": {"type": "null"},
+                      "black": {"type": "diffuse", "reflectance": 0}},
+        "shapes": [
+            {"type": "cube", "material": "boundary", "interior": "grid",
+             "transform": [{"scale": [1, 1, 400]}]},
+            {"type": "rectangle", "material": "black", "emission": 1.0,
+             "transform": [{"translate": [0, 0, -390]}]},
+        ],
+    }  # fmt: skip
+    scene = load_scene(write_scene(tmp_path, doc))
+    n, p = 4 * 16 * 256, np.exp(-1)
+    mean = mitsuba(scene, 4, 256).image_mean().mean.ravel()
+    assert np.all(np.abs(mean - p) < 4 * np.sqrt(p * (1 - p) / n)), mean
+
+
 def test_a_target_close_to_the_origin_keeps_its_direction(tmp_path):
     """Mitsuba takes target - origin in float32: a camera or spot target 1e-8 or 1e-12 from
     its origin (valid in our float64) gave Mitsuba no direction and a black image (found by a

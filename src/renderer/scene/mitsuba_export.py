@@ -162,7 +162,10 @@ def _medium(mi: Any, m: Medium) -> dict[str, Any]:
         "filter_type": "trilinear",
         "wrap_mode": "clamp",
     }
-    return {"type": "heterogeneous", "sigma_t": grid, **common}
+    # Grid extinction is grey. Mitsuba's default (spectral extinction) weights a path by tr / pdf
+    # of the whole segment to the next surface at the majorant: both underflow float32 past an
+    # optical depth of ~87, and paths through a shape reaching far beyond its grid went black.
+    return {"type": "heterogeneous", "sigma_t": grid, "has_spectral_extinction": False, **common}
 
 
 def _mesh(
