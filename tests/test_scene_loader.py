@@ -858,3 +858,17 @@ def test_a_value_of_nested_aliases_is_quoted_without_expanding_it(tmp_path):
     finally:
         tracemalloc.stop()
     assert len(msg) < 300 and peak < 20e6, (msg, peak)
+
+
+@pytest.mark.parametrize(
+    ("override", "key", "shown"),
+    [
+        ("camera.fov=true", "camera.fov", "got true"),
+        ("film.height=null", "film.height", "got null"),
+        ("camera.fov=2001-01-01", "camera.fov", "got 2001-01-01"),
+    ],
+)
+def test_values_are_quoted_as_yaml_writes_them(tmp_path, override, key, shown):
+    """Not as Python's True, None and datetime.date(2001, 1, 1) (a review)."""
+    msg = expect_error(write(tmp_path, BASE), key, re.escape(shown), [override])
+    assert msg.endswith(shown), msg
