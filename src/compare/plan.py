@@ -29,6 +29,7 @@ from renderer.imageio import check_folder_can_be_made
 from renderer.methods import check_method_parameters, check_overrides
 from renderer.progressive import snapshot_label
 from renderer.scene import load_scene
+from renderer.scene.loader import format_path
 
 from .metrics import REF_QUALITY_FACTOR
 
@@ -127,8 +128,7 @@ def _type_words(expected: Any) -> list[str]:
 
 
 def _key_path(error: Any) -> str:
-    key = "".join(f"[{k}]" if isinstance(k, int) else f".{k}" for k in error.absolute_path)
-    return key.lstrip(".") or "top level"
+    return format_path(error.absolute_path) if error.absolute_path else "top level"
 
 
 def schema_error_message(error: Any) -> str:
@@ -366,23 +366,23 @@ _WORKFLOW_OPTIONS = {
 }
 
 
-def _workflow_options_in(args: tuple[str, ...]) -> list[str]:
-    """Which of _WORKFLOW_OPTIONS ``args`` give, also at their default value (``--seed 0``) or
-    abbreviated (``--thr 1``): parsed on their own, with those options optional and unset."""
+_UNSET = object()
+
+
+def _render_parser_for_method_args() -> Any:
+    """`pgi render`'s own parser, with _WORKFLOW_OPTIONS optional and defaulting to _UNSET: a
+    parse of ``method_args`` alone then shows which of them they give, also at their default
+    value (``--seed 0``) or abbreviated (``--thr 1``)."""
     import argparse
 
     from renderer.cli import build_parser
 
     sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
     render = sub.choices["render"]
-    unset = object()
     for action in render._actions:
         if action.dest in _WORKFLOW_OPTIONS:
-            action.required, action.default = False, unset
-    parsed = render.parse_args(["scene", *args])
-    return [
-        option for dest, option in _WORKFLOW_OPTIONS.items() if getattr(parsed, dest) is not unset
-    ]
+            action.required, action.default = False, _UNSET
+    return render
 
 
 def check_method_args(method: str, args: tuple[str, ...]) -> list[str]:
@@ -393,23 +393,19 @@ def check_method_args(method: str, args: tuple[str, ...]) -> list[str]:
     import contextlib
     import io
 
-    from renderer.cli import build_parser
     from renderer.methods import method_ids
 
     where = f"method_args: {method}"
-    output = "<workflow>.exr"
     stderr = io.StringIO()
     try:
         with contextlib.redirect_stderr(stderr):
-            parsed = build_parser().parse_args(
-                ["render", "scene", "--method", method, "-o", output, *args]
-            )
+            parsed = _render_parser_for_method_args().parse_args(["scene", *args])
     except SystemExit:
         why = stderr.getvalue().strip().splitlines()
         raise PlanError(
             f"{where}: {why[-1] if why else 'not valid `pgi render` arguments'}"
         ) from None
-    given = _workflow_options_in(args)
+    given = [o for dest, o in _WORKFLOW_OPTIONS.items() if getattr(parsed, dest) is not _UNSET]
     if given:
         raise PlanError(f"{where}: {', '.join(given)}: the workflow sets this itself")
     keys = []
