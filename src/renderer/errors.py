@@ -1,5 +1,6 @@
 """User-facing errors: the CLI prints them as one line and exits non-zero."""
 
+import datetime
 import re
 import reprlib
 from typing import Any
@@ -28,13 +29,30 @@ def mitsuba_cause(text: str) -> str:
     return re.sub(r'^"[^"]*":\s*', "", last).strip() or text.strip()
 
 
+class _YamlRepr(reprlib.Repr):
+    """Values as a YAML file writes them, at any depth: true, false, null and dates as
+    written, not Python's True, None and datetime.date(2001, 1, 1)."""
+
+    def repr_bool(self, value: bool, level: int) -> str:
+        return "true" if value else "false"
+
+    def repr_NoneType(self, value: None, level: int) -> str:  # noqa: N802 (reprlib's naming)
+        return "null"
+
+    def repr_date(self, value: datetime.date, level: int) -> str:
+        return value.isoformat()
+
+    repr_datetime = repr_date
+
+
 def shorten_repr(value: Any, limit: int = 40) -> str:
     """The repr of a value quoted in a message, cut to `limit` characters. Built with bounded
     depth and length: YAML aliases nested a few levels deep make a small file a value whose
-    full repr takes gigabytes (the check of `stresses: [*a8]` once took 10 s and 750 MB)."""
+    full repr takes gigabytes (the check of `stresses: [*a8]` once took 10 s and 750 MB).
+    Written as YAML writes values (_YamlRepr): they come from scene files and overrides."""
     if isinstance(value, int) and value.bit_length() > 256:  # repr refuses over 4300 digits
         return f"an integer of about {int(value.bit_length() * 0.30103)} digits"
-    bounded = reprlib.Repr()
+    bounded = _YamlRepr()
     bounded.maxlevel = 4
     bounded.maxlist = bounded.maxtuple = bounded.maxdict = bounded.maxset = limit
     bounded.maxstring = bounded.maxother = bounded.maxlong = 2 * limit + 10

@@ -12,7 +12,6 @@ overrides, then validate and resolve into model objects.
 from __future__ import annotations
 
 import contextlib
-import datetime
 import errno
 import hashlib
 import json
@@ -26,7 +25,8 @@ from typing import Any, NoReturn
 import numpy as np
 import yaml
 
-from renderer.errors import PgiError, mitsuba_cause, one_line, shorten, shorten_repr
+from renderer.errors import PgiError, mitsuba_cause, one_line, shorten
+from renderer.errors import shorten_repr as _describe
 from renderer.ranges import INT32_MAX, integer_problem, number_problem
 from renderer.scene import primitives
 from renderer.scene import transform as xf
@@ -46,17 +46,6 @@ from renderer.scene.model import (
     SpotLight,
 )
 from renderer.volumes import MAX_GRID_SIDE, MAX_VDB_COORD
-
-
-def _describe(value: Any) -> str:
-    """A value quoted in a message as the scene file would write it: YAML's true, false and
-    null, and dates as written, not Python's True, None and datetime.date(2001, 1, 1)."""
-    if value is None or isinstance(value, bool):
-        return {None: "null", True: "true", False: "false"}[value]
-    if isinstance(value, datetime.date):
-        return value.isoformat()
-    return shorten_repr(value)
-
 
 # Mie tables: the largest relative index of refraction, the largest droplet's size parameter,
 # and its product with the table's resolution (a few seconds of work at most).
