@@ -8,13 +8,17 @@ point ``DRJIT_LIBLLVM_PATH`` at it before Dr.Jit starts; without one we use ``sc
 
 from __future__ import annotations
 
+import contextlib
 import glob
 import os
 import re
+import signal
 import sys
+import threading
+from collections.abc import Iterator
 from types import ModuleType
 
-from renderer.errors import PgiError, caused_by_interrupt, one_line
+from renderer.errors import PgiError, one_line
 
 LIB_DIRS = (
     "/usr/lib/x86_64-linux-gnu",
@@ -38,8 +42,34 @@ def find_libllvm() -> str | None:
     return best[1] if best else None
 
 
+@contextlib.contextmanager
+def signals_held() -> Iterator[None]:
+    """Ctrl-C and SIGTERM wait until the block ends. Dr.Jit broken off while it starts (an
+    interrupt raised in Mitsuba's import or set_variant) can abort the interpreter at exit
+    with "Fatal Python error" instead of a clean exit; after the block, the signal is handled
+    as it would have been."""
+    if threading.current_thread() is not threading.main_thread():
+        yield  # only the main thread runs Python's signal handlers
+        return
+    caught: list[int] = []
+    held = (signal.SIGINT, signal.SIGTERM)
+    handlers = {s: signal.signal(s, lambda signum, frame: caught.append(signum)) for s in held}
+    try:
+        yield
+    finally:
+        for s, handler in handlers.items():
+            signal.signal(s, handler)
+        for s in dict.fromkeys(caught):
+            signal.raise_signal(s)  # now the handler restored above takes it
+
+
 def import_mitsuba(variant: str | None = None) -> ModuleType:
     """The ``mitsuba`` module with a variant set (see the module docstring for the choice)."""
+    with signals_held():
+        return _import_mitsuba(variant)
+
+
+def _import_mitsuba(variant: str | None) -> ModuleType:
     variant = variant or os.environ.get("PGI_MITSUBA_VARIANT") or None
     if variant is None and "DRJIT_LIBLLVM_PATH" not in os.environ:
         lib = find_libllvm()
@@ -67,9 +97,6 @@ def import_mitsuba(variant: str | None = None) -> ModuleType:
                 mi.set_variant("llvm_ad_rgb")
                 return mi
             except Exception as e:
-                interrupt = caused_by_interrupt(e)
-                if interrupt is not None:  # Ctrl-C (or SIGTERM) while Dr.Jit starts LLVM
-                    raise type(interrupt)() from e
                 # Still a correct render, 2-3x slower: a timed comparison must know.
                 print(
                     f"pgi: note: Mitsuba's llvm_ad_rgb variant failed ({one_line(str(e))}); "
