@@ -8,6 +8,7 @@ import pytest
 from conftest import load_small
 from renderer.errors import PgiError
 from renderer.methods import get_method
+from renderer.scene.model import Film
 
 INT_1 = "an integer >= 1 and <= 2147483647"  # counts reach the core as 32-bit ints
 INT_0 = "an integer >= 0 and <= 2147483647"
@@ -48,6 +49,17 @@ def test_bad_method_parameter_is_a_clear_error(method, key, value, expected):
     assert msg.startswith(f"method {method}: {key} must be {expected}") and ", got " in msg, msg
 
 
+def test_a_bad_value_is_quoted_as_yaml_writes_it_and_briefly():
+    """Values come from --set and config files: quoted as Python wrote them, true was `True`,
+    and a 3000-element list made a 17,000-character line (a review)."""
+    for value, quoted in ((True, "got true"), (None, "got null"), (list(range(3000)), "...")):
+        with pytest.raises(PgiError) as info:
+            get_method("pt")(
+                load_small("cbox", 4, 4), seed=0, threads=1, params={"spp_per_wave": value}
+            )
+        assert str(info.value).endswith(quoted) and len(str(info.value)) < 200, info.value
+
+
 @pytest.mark.parametrize(
     "method, params, message",
     [
@@ -83,20 +95,42 @@ def test_sppm_takes_both_radii_without_its_default_scale():
         ("ppb", "light_paths", 10**8),
         ("ppb", "spp_per_iteration", 100_000),
         ("lt", "light_paths", 10**8),
-        ("mitsuba", "spp_per_iteration", 100_000),  # one LLVM wavefront holds them all
+        ("mitsuba", "spp_per_iteration", 500_000),  # one LLVM wavefront holds them all
     ],
 )
 def test_batches_beyond_half_the_memory_are_refused_before_any_work(
     monkeypatch, method, key, value
 ):
-    """On a 16x16 film: 25.6 million camera paths (or 1e8 light paths) per batch, ~24 GiB at
-    the bound of 1 KiB a path, on a machine of 24 GiB; Linux used to grant the memory and
-    then kill the render."""
+    """On a 16x16 film: 25.6 million camera paths (or 1e8 light paths) per batch, ~15 GiB at
+    the bound of 640 bytes a path (Mitsuba: 128 million samples of 128 bytes), on a machine
+    of 24 GiB; Linux used to grant the memory and then kill the render."""
     import renderer.methods.params as params
 
     monkeypatch.setattr(params, "physical_memory", lambda: 24 * 2**30)
     with pytest.raises(PgiError, match=f"^method {method}: {key} gives batches of .* GiB"):
         get_method(method)(load_small("cbox", 16, 16), seed=0, threads=1, params={key: value})
+
+
+def test_a_film_that_fits_at_one_sample_per_pixel_is_rendered(monkeypatch):
+    """The bound was 1 KiB per camera path for every method, Mitsuba included: a 4096x4096
+    film was refused on 24 GiB (measured: pt 475 bytes a path, Mitsuba 84-94 a sample),
+    with advice to lower a samples-per-iteration parameter that was already 1 (a review)."""
+    import renderer.methods.params as params
+    from renderer.methods.mitsuba import MitsubaVolpath
+
+    monkeypatch.setattr(params, "physical_memory", lambda: 24 * 2**30)
+    film = Film(4096, 4096)
+    params.MethodParams("pt", {}, ()).camera_paths_fit_in_memory("spp_per_wave", 1, film)
+    scene = load_small("cbox", 4096, 4096)
+    assert MitsubaVolpath.check_parameters(scene, {}) == 1
+    assert MitsubaVolpath.check_parameters(scene, {"spp_per_iteration": 4}) == 4
+    # at one sample per pixel the film alone can be made smaller
+    with pytest.raises(PgiError, match=r"about 21 GiB, .*: lower the film's size$"):
+        params.MethodParams("pt", {}, ()).camera_paths_fit_in_memory(
+            "spp_per_wave", 1, Film(6000, 6000)
+        )
+    with pytest.raises(PgiError, match="lower method.spp_per_iteration or the film's size$"):
+        MitsubaVolpath.check_parameters(scene, {"spp_per_iteration": 8})
 
 
 def test_memory_bound_follows_the_machine(monkeypatch):

@@ -56,7 +56,7 @@ class LightTracing:
         # With an spp budget the default batch is a whole number of paths per pixel: at least
         # the film's size, which can be lowered instead.
         film = " or the film's size" if spp_budget and "light_paths" not in params else ""
-        p.light_paths_fit_in_memory("light_paths", paths, film)
+        p.light_paths_fit_in_memory("light_paths", paths, f"method.light_paths{film}")
         max_records = p.integer("max_records", _DEFAULT_MAX_RECORDS, lo=1)
         self.native = build_native_scene(scene)
         self.tracer = EmbreeTracer(self.native.triangles, threads)
@@ -98,8 +98,11 @@ class LightTracing:
         light_paths = int(self.kernel.light_paths)
         return {
             "iterations": self.iterations,
-            # Light paths per pixel: lt's equivalent of samples per pixel.
-            "spp": light_paths // self.pixels,
+            # Light paths per pixel: lt's equivalent of samples per pixel (a fraction when
+            # fewer paths than pixels were traced; it read 0).
+            "spp": light_paths // self.pixels
+            if light_paths % self.pixels == 0
+            else light_paths / self.pixels,
             "light_paths": light_paths,
             "light_paths_per_iteration": self.light_paths.paths,
             "rays": int(self.tracer.rays_traced),

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from renderer.methods.params import MethodParams, budget_divisor
+from renderer.methods.params import MITSUBA_SAMPLE_BYTES, MethodParams, budget_divisor
 from renderer.mitsuba_env import import_mitsuba, set_threads
 from renderer.reference import derive_seed
 from renderer.scene.mitsuba_export import load_mitsuba_scene
@@ -39,7 +39,10 @@ class MitsubaVolpath:
         spp = self.check_parameters(scene, params, spp_budget)
         self.mi = import_mitsuba()
         set_threads(threads)
-        self.scene = load_mitsuba_scene(scene)
+        # volpath, what a user would run, even where the references take volpathmis
+        # (chromatic extinction; docs/methods.md): the sidecar says which
+        self.integrator = "volpath"
+        self.scene = load_mitsuba_scene(scene, self.integrator)
         self.seed, self.spp_per_iteration = seed, spp
         # Warm-up (its image is discarded): compiles the LLVM kernels as part of loading. Dr.Jit
         # runs kernels asynchronously: reading the image waits for it, else the first timed
@@ -56,7 +59,7 @@ class MitsubaVolpath:
         p = MethodParams(cls.id, params, cls.parameters)
         spp = p.spp_per_iteration("spp_per_iteration", default_spp(scene, spp_budget), spp_budget)
         # Mitsuba's LLVM variant traces all of an iteration's samples as one wavefront.
-        p.camera_paths_fit_in_memory("spp_per_iteration", spp, scene.film)
+        p.camera_paths_fit_in_memory("spp_per_iteration", spp, scene.film, MITSUBA_SAMPLE_BYTES)
         return spp
 
     def _render(self, seed: int) -> np.ndarray:
@@ -82,4 +85,5 @@ class MitsubaVolpath:
             "spp_per_iteration": self.spp_per_iteration,
             "nonfinite": self.nonfinite,
             "variant": self.mi.variant(),
+            "integrator": self.integrator,
         }

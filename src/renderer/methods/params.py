@@ -7,15 +7,18 @@ import os
 from collections.abc import Iterable
 from typing import Any
 
-from ..errors import PgiError
+from ..errors import PgiError, shorten_repr
 from ..ranges import INT32_MAX, integer_problem, number_problem
 from ..scene.model import Film
 
 # Memory one path of a batch may take (its state, rays, shadow rays and records): rough,
-# generous bounds. Measured: 200-470 bytes per camera path; light paths with their vertex,
+# generous bounds. Measured as the growth of peak memory from 1 to 4 million paths: camera
+# paths 475 bytes (pt on cbox-grid), 462 (ppb) and 247 (pm) on cbox-fog; Mitsuba's
+# wavefront 84-94 bytes per sample (cbox-fog, cbox-grid); light paths with their vertex,
 # photon and beam records 1.7 KB (pm, sppm), 2.5 KB (lt) and 3.3 KB (ppb), in the peak
 # memory of 2 million paths through cbox-fog.
-CAMERA_PATH_BYTES = 1024
+CAMERA_PATH_BYTES = 640
+MITSUBA_SAMPLE_BYTES = 128
 LIGHT_PATH_BYTES = 4096
 
 
@@ -55,7 +58,8 @@ class MethodParams:
         self.method, self.params = method, params
 
     def fail(self, key: str, expected: str) -> None:
-        raise PgiError(f"method {self.method}: {key} must be {expected}, got {self.params[key]!r}")
+        got = shorten_repr(self.params[key])  # as YAML writes it: true, null, not True, None
+        raise PgiError(f"method {self.method}: {key} must be {expected}, got {got}")
 
     def integer(self, key: str, default: int, lo: int | None = None, hi: int = INT32_MAX) -> int:
         """An integer parameter in [lo, hi] (counts reach the native core as 32-bit ints)."""
@@ -93,27 +97,32 @@ class MethodParams:
         key: str,
         paths: int,
         what: str = "camera paths",
-        or_lower: str = "",
+        remedy: str = "",
         path_bytes: int = CAMERA_PATH_BYTES,
     ) -> None:
         """Refuse a batch of paths whose state would take over half the machine's memory:
-        Linux grants such allocations and then kills the process, with no message."""
+        Linux grants such allocations and then kills the process, with no message. The
+        message says to lower `remedy` (default: the parameter `key`)."""
         total = physical_memory()
         if total and paths * path_bytes > total // 2:
             raise PgiError(
                 f"method {self.method}: {key} gives batches of {paths:,} {what}, about "
                 f"{paths * path_bytes / 2**30:.0f} GiB, more than half this machine's "
-                f"{total / 2**30:.0f} GiB: lower method.{key}{or_lower}"
+                f"{total / 2**30:.0f} GiB: lower {remedy or f'method.{key}'}"
             )
 
-    def camera_paths_fit_in_memory(self, key: str, spp: int, film: Film) -> None:
-        """paths_fit_in_memory for a batch of `spp` camera paths per pixel of `film`."""
+    def camera_paths_fit_in_memory(
+        self, key: str, spp: int, film: Film, path_bytes: int = CAMERA_PATH_BYTES
+    ) -> None:
+        """paths_fit_in_memory for a batch of `spp` camera paths per pixel of `film`; at one
+        per pixel only the film's size can be lowered."""
         paths = spp * film.width * film.height
-        self.paths_fit_in_memory(key, paths, "camera paths", " or the film's size")
+        remedy = "the film's size" if spp == 1 else f"method.{key} or the film's size"
+        self.paths_fit_in_memory(key, paths, "camera paths", remedy, path_bytes)
 
-    def light_paths_fit_in_memory(self, key: str, paths: int, or_lower: str = "") -> None:
+    def light_paths_fit_in_memory(self, key: str, paths: int, remedy: str = "") -> None:
         """paths_fit_in_memory for a batch of light paths, which keep their records."""
-        self.paths_fit_in_memory(key, paths, "light paths", or_lower, LIGHT_PATH_BYTES)
+        self.paths_fit_in_memory(key, paths, "light paths", remedy, LIGHT_PATH_BYTES)
 
     def spp_per_iteration(self, key: str, default: int, spp_budget: int | None) -> int:
         """Samples per pixel of one iteration; with an spp budget it must divide it, so that
