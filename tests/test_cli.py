@@ -64,6 +64,8 @@ def test_render_writes_image_sidecar_and_snapshots(tmp_path):
     ):
         assert key in info
     assert info["method"] == "pt" and info["seed"] == 5 and info["nonfinite"] == 0
+    # the code it ran: `version` alone is the same for every commit
+    assert info["code"] == json.loads(pgi("fingerprint").stdout)["render"]
     # the final image is the iteration end nearest 0.4 s
     assert info["render_seconds"] + info["last_iteration_seconds"] / 2 >= 0.4
     assert info["nonfinite"] == 0 and info["rays"] > 0
@@ -285,6 +287,18 @@ def test_images_that_are_not_whole_exr_files_are_refused(tmp_path):
     xyz_image.write(str(tmp_path / "xyz.exr"))
     r = pgi("compare", str(tmp_path / "xyz.exr"), str(tmp_path / "ref.exr"))
     assert r.returncode == 2 and "expected channels R, G, B" in r.stderr and "X, Y, Z" in r.stderr
+    # OpenEXR's uint channels hold integers, which OpenImageIO scaled to [0, 1]: 100 was
+    # compared as 2.3e-8 (a review). Integer alpha beside half colour is fine.
+    integers = oiio.ImageSpec(64, 64, 3, oiio.UINT)
+    _write_oiio(tmp_path / "uint.exr", [integers], [np.full((64, 64, 3), 100)])
+    r = pgi("compare", str(tmp_path / "uint.exr"), str(tmp_path / "ref.exr"))
+    assert r.returncode == 2 and "R (uint), G (uint), B (uint) hold integers" in r.stderr
+    alpha = oiio.ImageSpec(64, 64, 4, oiio.HALF)
+    alpha.channelnames = ("R", "G", "B", "A")
+    alpha.channelformats = (oiio.HALF, oiio.HALF, oiio.HALF, oiio.UINT)
+    _write_oiio(tmp_path / "alpha.exr", [alpha], [np.ones((64, 64, 4))])
+    r = pgi("compare", str(tmp_path / "alpha.exr"), str(tmp_path / "alpha.exr"), "--json")
+    assert r.returncode == 0 and json.loads(r.stdout)["mse"] == 0, r.stderr
 
 
 def _write_oiio(path: Path, specs: list, images: list[np.ndarray]) -> None:
@@ -815,6 +829,20 @@ def test_fingerprint_refuses_a_core_older_than_its_sources(tmp_path):
     os.utime(core, (source.stat().st_mtime - 10,) * 2)
     with pytest.raises(PgiError, match=r"renderer/cpp/pt.cpp is newer than the built C\+\+ core"):
         fingerprint.check_core_is_current(core, [source])
+
+
+def test_a_render_of_a_stale_core_says_its_code_is_unknown(monkeypatch):
+    """A render still runs when a C++ source is newer than the core, but its sidecar's
+    `code` does not claim the sources' digest."""
+    from renderer import progressive
+
+    def stale():
+        raise PgiError("renderer/cpp/pt.cpp is newer than the built C++ core")
+
+    monkeypatch.setattr(progressive, "render_fingerprint", stale)
+    assert progressive._code_fingerprint() == (
+        "unknown: renderer/cpp/pt.cpp is newer than the built C++ core"
+    )
 
 
 def test_fingerprints_follow_the_mitsuba_variant(monkeypatch):

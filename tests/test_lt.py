@@ -244,6 +244,19 @@ def test_record_bound_is_an_error():
         method.run_iteration(0)
 
 
+def test_fewer_light_paths_than_pixels_are_a_fraction_of_a_sample_per_pixel():
+    lt = LightTracing(load_small("cbox", 16, 16), seed=0, threads=1, params={"light_paths": 96})
+    lt.run_iteration(0)
+    assert lt.stats()["spp"] == 96 / 256
+    lt.run_iteration(1)
+    lt.run_iteration(2)
+    lt.run_iteration(3)
+    assert lt.stats()["spp"] == 1.5 and isinstance(lt.stats()["spp"], float)
+    lt = LightTracing(load_small("cbox", 16, 16), seed=0, threads=1, params={"light_paths": 512})
+    lt.run_iteration(0)
+    assert lt.stats()["spp"] == 2 and isinstance(lt.stats()["spp"], int)
+
+
 def test_unknown_parameter_is_a_clear_error():
     with pytest.raises(PgiError, match="unknown parameter"):
         LightTracing(load_small("cbox", 8, 8), seed=0, threads=1, params={"spp": 3})

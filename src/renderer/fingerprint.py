@@ -103,18 +103,28 @@ def check_core_is_current(core: Path, sources: list[Path]) -> None:
         )
 
 
-def fingerprints() -> dict[str, str]:
-    """{"render": ..., "reference": ...}: short hex digests of the code behind each."""
-    from . import _core
-
-    check_core_is_current(Path(_core.__file__), render_sources())
+def _libraries() -> dict[str, str]:
     libraries = {name: _version(name) for name in ("mitsuba", "drjit", "embreex")}
     # Which Mitsuba variant runs (renderer.mitsuba_env): llvm and scalar differ in their
     # random streams, so a switch reruns Mitsuba's images.
     libraries["mitsuba-variant"] = mitsuba_variant_setting()
+    return libraries
+
+
+def render_fingerprint() -> str:
+    """The render digest of fingerprints() alone (no subprocess): what a render's sidecar
+    records as the code it ran."""
+    from . import _core
+
+    sources = render_sources()
+    check_core_is_current(Path(_core.__file__), sources)
+    return _digest(sources, _libraries())
+
+
+def fingerprints() -> dict[str, str]:
+    """{"render": ..., "reference": ...}: short hex digests of the code behind each."""
+    libraries = {k: v for k, v in _libraries().items() if k != "embreex"}
     return {
-        "render": _digest(render_sources(), libraries),
-        "reference": _digest(
-            reference_sources(), {k: v for k, v in libraries.items() if k != "embreex"}
-        ),
+        "render": render_fingerprint(),
+        "reference": _digest(reference_sources(), libraries),
     }

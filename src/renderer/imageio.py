@@ -16,6 +16,8 @@ import OpenImageIO as oiio
 
 from .errors import PgiError, one_line, shorten
 
+FLOAT_TYPES = ("half", "float")  # OpenEXR's pixel types for radiance (the third is uint)
+
 
 def read_exr(path: str | Path) -> np.ndarray:
     """Read an image as float32 (H, W, 3); a single channel is repeated, alpha is dropped."""
@@ -66,6 +68,16 @@ def read_exr_and_channels(path: str | Path) -> tuple[np.ndarray, int]:
         raise PgiError(
             f"{path}: expected channels R, G, B or one grey channel Y (alpha aside), found "
             f"{', '.join(names)}"
+        )
+    # An EXR's uint channel holds integers, which OpenImageIO scales to [0, 1] (100 reads
+    # as 2.3e-8): not radiance.
+    formats = [str(f) for f in spec.channelformats] or [str(spec.format)] * spec.nchannels
+    used = zip(names[:channels], formats[:channels], strict=True)
+    integers = [f"{name} ({kind})" for name, kind in used if kind not in FLOAT_TYPES]
+    if integers:
+        raise PgiError(
+            f"{path}: channel(s) {', '.join(integers)} hold integers; expected half or float "
+            "channels of linear radiance"
         )
     return np.ascontiguousarray(pixels, dtype=np.float32), channels
 

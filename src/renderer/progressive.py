@@ -27,6 +27,7 @@ import numpy as np
 
 from . import __version__
 from .errors import PgiError
+from .fingerprint import render_fingerprint
 from .imageio import write_image_and_sidecar
 from .methods import get_method
 from .scene.model import Scene
@@ -156,6 +157,15 @@ class Progress:
             print(f"progress {frac:6.1%} {seconds:.1f} s {spp} spp", file=sys.stderr, flush=True)
 
 
+def _code_fingerprint() -> str:
+    """The digest of the renderer's code and libraries (the workflow's render fingerprint),
+    or why it is unknown: `version` alone does not change between commits."""
+    try:
+        return render_fingerprint()
+    except PgiError as e:  # C++ sources edited after the build: a render still runs
+        return f"unknown: {e}"
+
+
 def render(
     scene: Scene,
     settings: RenderSettings,
@@ -194,6 +204,7 @@ def render(
 
     base = {
         "version": __version__,
+        "code": _code_fingerprint(),
         "scene": scene.name,
         "scene_file": str(scene.path),
         "method": settings.method,
