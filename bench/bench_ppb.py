@@ -3,8 +3,8 @@
     python bench/bench_ppb.py [--scenes volcaustic cbox-fog] [--budgets 2 4 8 16]
                               [--size 48] [--threads 2] [--seeds 1]
 
-Each method runs once per seed up to the largest budget; its image is taken whenever its
-render time passes a budget (one run gives the whole error-vs-time curve, as the workflow's
+Each method runs once per seed up to the largest budget; its image is taken at the iteration
+end nearest each budget (one run gives the whole error-vs-time curve, as the workflow's
 snapshots do). relMSE is measured against a Mitsuba reference rendered as two independent
 halves (cached under bench/.cache/); the halves' own relMSE bounds the reference error and
 is printed next to the results. The log-log slope of relMSE against time is fitted over the

@@ -27,3 +27,14 @@ def test_loading_runs_the_render_kernel_once() -> None:
         dr.set_flag(dr.JitFlag.KernelHistory, False)
     samples = 16 * 16 * method.spp_per_iteration
     assert any(k["type"] == dr.KernelType.JIT and k["size"] == samples for k in loading)
+
+
+def test_it_renders_with_volpath_and_says_so() -> None:
+    """What a user would run, volpath, also where the references take volpathmis (extinction
+    that differs between channels): the sidecar names it, as the reference's does."""
+    scene = load_scene(
+        "cbox-fog", ["film.width=8", "film.height=8", "media.fog.sigma_t=[0.2, 1, 3]"]
+    )
+    method = MitsubaVolpath(scene, seed=0, threads=1, params={"spp_per_iteration": 1})
+    assert method.stats()["integrator"] == "volpath"
+    assert str(method.scene.integrator()).startswith("VolumetricSimplePathIntegrator[")

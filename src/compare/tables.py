@@ -5,6 +5,7 @@ Tables (all written by :func:`write_tables` into one folder):
 - ``runs.csv``           one row per scene x method x seed x budget: metrics, sidecar stats,
                          the reference's own error and the ``ref_ok`` quality flag
 - ``summary.csv``        mean, std, min, max over seeds per scene x method x budget
+- ``best.csv``           the best method per scene and budget, and the methods tied with it
 - ``overview.{md,html}`` primary metric, scene x method rows, one column per budget,
                          mean +- std over seeds, best method per scene and budget marked,
                          cells whose reference is not good enough flagged
@@ -19,6 +20,7 @@ Tables (all written by :func:`write_tables` into one folder):
                          further than 4x outside the measured times become bounds (``bound``
                          "<=" / ">=", and ``speedup_bound`` for the speed-up)
 - ``stats.csv``          render statistics per run (iterations, rays, load time, memory, wall time)
+- ``tables.md``          the convergence, time-to-error and stats tables in Markdown
 """
 
 from __future__ import annotations

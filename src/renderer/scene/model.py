@@ -7,8 +7,10 @@ and Mitsuba see the same triangles. Colours are linear RGB triples.
 Conventions (each matches Mitsuba 3 and has a parity test):
 - A triangle's geometric normal is cross(v1 - v0, v2 - v0) normalised. The
   *exterior* medium lies on the side the normal points to, the *interior*
-  medium on the other side. After any surface event the path continues in
-  the medium on the side its new direction points to.
+  medium on the other side. After a surface event at a shape that names an
+  interior or exterior medium, the path continues in the medium on the side
+  its new direction points to; a shape that names neither leaves the path in
+  the medium it was in (walls inside fog reflect back into the fog).
 - Area emission is one-sided: radiance leaves the front (normal) side only.
 - Density grids are indexed ``density[x, y, z]`` (as OpenVDB's copyToArray
   gives them); voxel (i, j, k) has its centre at ((i, j, k) + 0.5) / res in
