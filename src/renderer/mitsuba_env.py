@@ -52,7 +52,8 @@ def signals_held() -> Iterator[None]:
         yield  # only the main thread runs Python's signal handlers
         return
     caught: list[int] = []
-    held = (signal.SIGINT, signal.SIGTERM)
+    # A handler installed outside Python (getsignal gives None) could not be put back.
+    held = [s for s in (signal.SIGINT, signal.SIGTERM) if signal.getsignal(s) is not None]
     handlers = {s: signal.signal(s, lambda signum, frame: caught.append(signum)) for s in held}
     try:
         yield
