@@ -64,6 +64,8 @@ def test_render_writes_image_sidecar_and_snapshots(tmp_path):
     ):
         assert key in info
     assert info["method"] == "pt" and info["seed"] == 5 and info["nonfinite"] == 0
+    # every method parameter with the value used, though none was given
+    assert info["params"] == {} and set(info["method_params"]) == {"spp_per_wave"}
     # the code it ran: `version` alone is the same for every commit
     assert info["code"] == json.loads(pgi("fingerprint").stdout)["render"]
     # the final image is the iteration end nearest 0.4 s
@@ -706,6 +708,7 @@ class _ClockedMethod:
 
     def __init__(self, scene, *, seed, threads, params, spp_budget=None) -> None:
         self.iterations = 0
+        self.method_params = {}
 
     def run_iteration(self, iteration: int) -> None:
         self.clock[0] += self.lengths[iteration]

@@ -111,6 +111,29 @@ def test_batches_beyond_half_the_memory_are_refused_before_any_work(
         get_method(method)(load_small("cbox", 16, 16), seed=0, threads=1, params={key: value})
 
 
+def test_every_parameter_used_is_recorded_with_its_value():
+    """The sidecar's `method_params`: given and default values alike (its `params` holds only
+    those given), and none whose default plays no part (a review)."""
+    scene = load_small("cbox", 4, 4)
+    pm = get_method("pm")(scene, seed=0, threads=1, params={"photons": 100})
+    size = pm.native.core.scene_radius
+    assert pm.method_params == {
+        "photons": 100,
+        "spp_per_iteration": 1,
+        "max_records": 8388608,
+        "radius_scale": 0.02,
+        "radius": pytest.approx(0.02 * size),
+        "volume_radius": pytest.approx(0.02 * size),
+    }
+    both = get_method("pm")(scene, seed=0, threads=1, params={"radius": 0.1, "volume_radius": 0.2})
+    assert "radius_scale" not in both.method_params and both.method_params["volume_radius"] == 0.2
+    sppm = get_method("sppm")(scene, seed=0, threads=1, params={"alpha": 0.5})
+    assert sppm.method_params["alpha"] == sppm.method_params["volume_alpha"] == 0.5
+    assert "photons" in sppm.method_params
+    ppb = get_method("ppb")(scene, seed=0, threads=1, params={"surface_radius": 0})
+    assert "gather_bounces" in ppb.method_params and "surface_alpha" not in ppb.method_params
+
+
 def test_a_film_that_fits_at_one_sample_per_pixel_is_rendered(monkeypatch):
     """The bound was 1 KiB per camera path for every method, Mitsuba included: a 4096x4096
     film was refused on 24 GiB (measured: pt 475 bytes a path, Mitsuba 84-94 a sample),

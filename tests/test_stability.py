@@ -682,6 +682,7 @@ class _NanMethod:
 
     def __init__(self, scene, *, seed, threads, params, spp_budget=None) -> None:
         self.iterations = 0
+        self.method_params = {}
 
     def run_iteration(self, iteration: int) -> None:
         self.iterations += 1

@@ -209,6 +209,7 @@ def render(
         "scene_file": str(scene.path),
         "method": settings.method,
         "params": settings.params,
+        "method_params": method.method_params,
         "overrides": list(settings.overrides),
         "seed": settings.seed,
         "threads": settings.threads,

@@ -18,6 +18,7 @@ class Method(Protocol):
     id: str
     description: str
     parameters: frozenset[str]  # the KEYs `--set method.KEY=VALUE` may set
+    method_params: dict  # after __init__: each parameter that applies, with the value used
 
     # spp_budget: the run stops at this many samples per pixel; methods that batch
     # samples per iteration keep their batches a divisor of it.

@@ -58,6 +58,7 @@ class LightTracing:
         film = " or the film's size" if spp_budget and "light_paths" not in params else ""
         p.light_paths_fit_in_memory("light_paths", paths, f"method.light_paths{film}")
         max_records = p.integer("max_records", _DEFAULT_MAX_RECORDS, lo=1)
+        self.method_params = p.used
         self.native = build_native_scene(scene)
         self.tracer = EmbreeTracer(self.native.triangles, threads)
         self.light_paths = LightPaths(

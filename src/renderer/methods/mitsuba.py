@@ -37,6 +37,7 @@ class MitsubaVolpath:
         self, scene: Scene, *, seed: int, threads: int, params: dict, spp_budget: int | None = None
     ) -> None:
         spp = self.check_parameters(scene, params, spp_budget)
+        self.method_params = {"spp_per_iteration": spp}
         self.mi = import_mitsuba()
         set_threads(threads)
         # volpath, what a user would run, even where the references take volpathmis

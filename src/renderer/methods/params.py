@@ -56,6 +56,8 @@ class MethodParams:
                 f"method {method}: unknown parameter(s) {sorted(unknown)}; known: {names}"
             )
         self.method, self.params = method, params
+        # every parameter read, with the value used (defaults included): the sidecar's record
+        self.used: dict[str, Any] = {}
 
     def fail(self, key: str, expected: str) -> None:
         got = shorten_repr(self.params[key])  # as YAML writes it: true, null, not True, None
@@ -64,10 +66,12 @@ class MethodParams:
     def integer(self, key: str, default: int, lo: int | None = None, hi: int = INT32_MAX) -> int:
         """An integer parameter in [lo, hi] (counts reach the native core as 32-bit ints)."""
         if key not in self.params:
+            self.used[key] = default
             return default
         expected = integer_problem(self.params[key], lo, hi)
         if expected:
             self.fail(key, expected)
+        self.used[key] = self.params[key]
         return self.params[key]
 
     def number(
@@ -81,16 +85,20 @@ class MethodParams:
     ) -> float:
         """A finite number in the given range (open or closed at each end)."""
         if key not in self.params:
+            self.used[key] = float(default)
             return float(default)
         expected = number_problem(self.params[key], lo, hi, lo_open, hi_open)
         if expected:
             self.fail(key, expected)
+        self.used[key] = float(self.params[key])
         return float(self.params[key])
 
     def refuse_unused(self, key: str, used: bool, why: str) -> None:
         """A parameter given where it has no effect is a mistake, not something to ignore."""
         if key in self.params and not used:
             raise PgiError(f"method {self.method}: {key} has no effect {why}")
+        if not used:  # its default played no part either
+            self.used.pop(key, None)
 
     def paths_fit_in_memory(
         self,

@@ -58,6 +58,7 @@ class PhotonMapping:
         self.volume_radius = p.number("volume_radius", scale * size, lo=smallest, hi=largest)
         both = "radius" in params and "volume_radius" in params
         p.refuse_unused("radius_scale", not both, "when radius and volume_radius are both given")
+        self.method_params = p.used
         self.light_paths = LightPaths(
             self.native,
             self.tracer,

@@ -98,6 +98,7 @@ class ProgressivePhotonBeams:
         surface_alpha = p.number("surface_alpha", DEFAULT_SURFACE_ALPHA, lo=0, hi=1, lo_open=True)
         p.refuse_unused("gather_bounces", surface_radius == 0, "unless surface_radius=0")
         p.refuse_unused("surface_alpha", surface_radius > 0, "with surface_radius=0")
+        self.method_params = p.used
         self.native = build_native_scene(scene)
         self.tracer = EmbreeTracer(self.native.triangles, threads)
         size = self.native.core.scene_radius

@@ -44,6 +44,7 @@ class PathTracing:
         p = MethodParams(self.id, params, self.parameters)
         spp_per_wave = p.spp_per_iteration("spp_per_wave", wave_spp(pixels, spp_budget), spp_budget)
         p.camera_paths_fit_in_memory("spp_per_wave", spp_per_wave, scene.film)
+        self.method_params = p.used
         self.native = build_native_scene(scene)
         self.tracer = EmbreeTracer(self.native.triangles, threads)
         self.kernel = _core.PathTracer(

@@ -43,6 +43,7 @@ class StochasticProgressivePhotonMapping(PhotonMapping):
         if "radius" not in params or "volume_radius" not in params:
             params.setdefault("radius_scale", DEFAULT_INITIAL_RADIUS_SCALE)
         super().__init__(scene, seed=seed, threads=threads, params=params, spp_budget=spp_budget)
+        self.method_params = {**self.method_params, **p.used}
         self.alpha, self.volume_alpha = alpha, volume_alpha
 
     def radii(self, iteration: int) -> tuple[float, float]:
