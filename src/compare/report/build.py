@@ -177,6 +177,14 @@ def _methods_note(methods: list[str], bases: dict[str, str]) -> str:
 # --- scene page -------------------------------------------------------------------------------
 
 
+def _why_absent(method: str) -> str:
+    """Why an expected winner has no results: left out of the study, or not a method yet
+    (the brief's bdpt, vpl, vrl and vbl)."""
+    from renderer.methods import NOT_YET_IMPLEMENTED
+
+    return "not implemented yet" if method in NOT_YET_IMPLEMENTED else "not in this study"
+
+
 def _about_scene(
     scene_file: str | None,
     scene: str,
@@ -198,7 +206,7 @@ def _about_scene(
     expected = [str(m) for m in doc.get("expected_winners") or []]
     if expected:
         present = {bases.get(m, m) for m in methods}
-        shown = [m if m in present else f"{m} (not in this study)" for m in expected]
+        shown = [m if m in present else f"{m} ({_why_absent(m)})" for m in expected]
         parts.append(f"<p><b>Expected to win:</b> {e(', '.join(shown))}.")
         best = T.best_methods(summary[summary.scene == scene], metric)
         if not best.empty:
