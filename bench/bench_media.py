@@ -20,7 +20,7 @@ Three tables (numbers are reported, never asserted; timings are noisy on a share
 3. Equal time on ``smoke``: pt with the best estimator against Mitsuba volpath (global
    majorant), relMSE against the same reference.
 
-Run: python bench/bench_media.py [--time 5] [--res 64] [--threads 2]
+Run: python bench/bench_media.py [--time 5] [--ref-time 40] [--size 64] [--threads 2]
      [--cells 2 3 4 5 6] [--render-cells 2 4]   (majorant cell sizes to sweep)
 """
 
@@ -33,6 +33,8 @@ import time
 import numpy as np
 
 import renderer.methods.pt as pt_module
+from benchlib import add_common_options, at_least, check_options, scene_at, seconds
+from compare.metrics import reference_error, relmse_map
 from renderer import _core
 from renderer.engine import MAJORANT_CELL, build_native_scene, march_step
 from renderer.methods.mitsuba import MitsubaVolpath
@@ -45,13 +47,13 @@ Ray = tuple[np.ndarray, np.ndarray, float]  # origin, unit direction, length
 
 
 def rel_mse(x: np.ndarray, ref: np.ndarray) -> float:
-    return float(np.mean((x - ref) ** 2 / (ref**2 + 0.01)))
+    return float(relmse_map(x, ref).mean())
 
 
 # --------------------------------------------------------------------------- 1. shadow rays
 
 
-def pt_shadow_rays(name: str, n_rays: int, seed: int, res: int = 32) -> list[Ray]:
+def pt_shadow_rays(name: str, n_rays: int, seed: int, threads: int, res: int = 32) -> list[Ray]:
     """(origin, direction, length) of the first ``n_rays`` shadow-ray segments whose
     transmittance pt evaluates on scene ``name`` (``res`` x ``res``, one path per pixel and
     wave, waves until there are enough), recorded from its Embree calls: a segment runs to its
@@ -59,8 +61,8 @@ def pt_shadow_rays(name: str, n_rays: int, seed: int, res: int = 32) -> list[Ray
     surface blocks are left out (pt ends them without a transmittance). In these scenes the
     grid fills exactly the box of its null boundary, so a segment outside the medium meets no
     voxel: it costs no lookup and adds no variance, whichever estimator."""
-    scene = load_scene(name, [f"film.width={res}", f"film.height={res}"])
-    method = PathTracing(scene, seed=seed, threads=2, params={"spp_per_wave": 1})
+    scene = scene_at(name, res)
+    method = PathTracing(scene, seed=seed, threads=threads, params={"spp_per_wave": 1})
     if method.kernel.shadows_any_hit:
         raise SystemExit(f"{name}: no null boundaries, hence no media to measure")
     null = method.native.per_triangle(
@@ -152,7 +154,7 @@ def reference(scene, seconds: float, threads: int) -> tuple[np.ndarray, float]:
         image, _, _ = timed(m, seconds / 2)
         halves.append(image)
     ref = 0.5 * (halves[0] + halves[1])
-    return ref, rel_mse(halves[0], halves[1]) / 4
+    return ref, reference_error(*halves)["ref_relmse"]
 
 
 def render_table(name: str, res: int, seconds: float, ref_seconds: float, threads: int,
@@ -162,24 +164,26 @@ def render_table(name: str, res: int, seconds: float, ref_seconds: float, thread
     ref_scene = load_scene(name, [*base, "integrator.estimator=residual"])
     ref, ref_err = reference(ref_scene, ref_seconds, threads)
     rows = []
-    for cell in cells:
-        # The cell size is no scene option: swap the builder pt uses (bench only).
-        pt_module.build_native_scene = functools.partial(build_native_scene, majorant_cell=cell)
-        for est in ESTIMATORS:
-            scene = load_scene(name, [*base, f"integrator.estimator={est}"])
-            m = PathTracing(scene, seed=1, threads=threads, params={"spp_per_wave": 2})
-            image, st, used = timed(m, seconds)
-            paths = st["spp"] * res * res
-            method = f"pt/{est}" if len(cells) == 1 else f"pt/{est} cell {cell}"
-            rows.append({"scene": name, "method": method, "seconds": used, "spp": st["spp"],
-                         "lookups_per_path": st["density_lookups"] / max(paths, 1),
-                         "relMSE": rel_mse(image, ref), "ref_relMSE": ref_err})  # fmt: skip
-    pt_module.build_native_scene = build_native_scene
+    try:
+        for cell in cells:
+            # The cell size is no scene option: swap the builder pt uses (bench only).
+            pt_module.build_native_scene = functools.partial(build_native_scene, majorant_cell=cell)
+            for est in ESTIMATORS:
+                scene = load_scene(name, [*base, f"integrator.estimator={est}"])
+                m = PathTracing(scene, seed=1, threads=threads, params={"spp_per_wave": 2})
+                image, st, used = timed(m, seconds)
+                paths = st["spp"] * res * res
+                method = f"pt/{est}" if len(cells) == 1 else f"pt/{est} cell {cell}"
+                rows.append({"scene": name, "method": method, "seconds": used, "spp": st["spp"],
+                             "lookups_per_path": st["density_lookups"] / max(paths, 1),
+                             "relMSE": rel_mse(image, ref), "ref_relMSE": ref_err})  # fmt: skip
+    finally:
+        pt_module.build_native_scene = build_native_scene
     return rows, ref, ref_err
 
 
 def mitsuba_row(name: str, res: int, seconds: float, threads: int, ref, ref_err) -> dict:
-    scene = load_scene(name, [f"film.width={res}", f"film.height={res}"])
+    scene = scene_at(name, res)
     m = MitsubaVolpath(scene, seed=1, threads=threads, params={"spp_per_iteration": 2})
     image, st, used = timed(m, seconds)
     return {"scene": name, "method": "mitsuba volpath", "seconds": used, "spp": st["spp"],
@@ -200,22 +204,23 @@ def print_table(rows: list[dict], columns: list[str]) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--time", type=float, default=5.0, help="seconds per timed render")
-    ap.add_argument("--ref-time", type=float, default=40.0, help="seconds for each reference")
-    ap.add_argument("--res", type=int, default=64)
-    ap.add_argument("--threads", type=int, default=2)
-    ap.add_argument("--scenes", nargs="+", default=["smoke", "cbox-grid"])
+    add_common_options(ap, ["smoke", "cbox-grid"])
+    ap.set_defaults(size=64)
+    ap.add_argument("--time", type=seconds, default=5.0, help="seconds per timed render")
+    ap.add_argument(
+        "--ref-time", type=seconds, default=40.0, help="seconds of each pt reference (two halves)"
+    )
     ap.add_argument(
         "--cells",
         nargs="+",
-        type=int,
+        type=at_least(0),
         default=None,
         help="majorant cells (voxels) for table 1, 0 = global "
         f"(default {MAJORANT_CELL}, x2, x4, global)",
     )
     ap.add_argument(
         "--shadow-rays",
-        type=int,
+        type=at_least(1),
         default=8000,
         help="pt's shadow-ray segments per scene for table 1 (default 8000: on smoke, ratio "
         "tracking's lead over delta tracking then varies by 0.2 %% between seeds)",
@@ -223,30 +228,34 @@ def main() -> None:
     ap.add_argument(
         "--render-cells",
         nargs="+",
-        type=int,
+        type=at_least(1),
         default=[MAJORANT_CELL],
-        help="majorant cells for the equal-time renders of table 2",
+        help="majorant cells (voxels) for the equal-time renders of table 2",
     )
     args = ap.parse_args()
+    check_options(ap, args)
+    for name in args.scenes:
+        if not any(m.type == "grid" for m in scene_at(name, 8).media.values()):
+            ap.error(f"{name}: no grid medium, whose transmittance estimators this measures")
 
     print(f"1. Shadow-ray transmittance ({args.shadow_rays} of pt's shadow-ray segments per scene;")
     print(f"   majorant cells of {MAJORANT_CELL} voxels are the renderer's; coarser to compare)\n")
     cells = args.cells or [MAJORANT_CELL, 2 * MAJORANT_CELL, 4 * MAJORANT_CELL, 0]
     rows = []
     for s in args.scenes:
-        rays = pt_shadow_rays(s, args.shadow_rays, seed=1)
+        rays = pt_shadow_rays(s, args.shadow_rays, seed=1, threads=args.threads)
         rows += [r for c in cells for r in shadow_table(s, c, rays)]
     columns = ["scene", "majorant_cell", "estimator", "lookups_per_ray", "variance", "us_per_ray",
                "efficiency", "efficiency_vs_delta", "rel_abs_error"]  # fmt: skip
     print_table(rows, columns)
 
-    print(f"2./3. Equal-time renders, {args.res}x{args.res}, {args.time:g} s each\n")
+    print(f"2./3. Equal-time renders, {args.size}x{args.size}, {args.time:g} s each\n")
     all_rows = []
     for s in args.scenes:
-        rows, ref, ref_err = render_table(s, args.res, args.time, args.ref_time, args.threads,
+        rows, ref, ref_err = render_table(s, args.size, args.time, args.ref_time, args.threads,
                                           args.render_cells)  # fmt: skip
         if s == "smoke":
-            rows.append(mitsuba_row(s, args.res, args.time, args.threads, ref, ref_err))
+            rows.append(mitsuba_row(s, args.size, args.time, args.threads, ref, ref_err))
             excluded = ("pt/raymarch", "mitsuba volpath")  # biased, or not ours
             unbiased = [r for r in rows if not r["method"].startswith(excluded)]
             best = min(unbiased, key=lambda r: r["relMSE"])

@@ -1,7 +1,7 @@
 """pt against raw Embree throughput and against Mitsuba volpath at equal time.
 
     python bench/bench_pt.py [--scenes cbox cbox-fog cbox-grid] [--seconds 10] [--size 128]
-                             [--reference-spp 8192]
+                             [--reference-spp 8192] [--threads 2]
 
 (a) Ray throughput: pt's rays per second over whole waves (after a warm-up wave), against
     raw embreex on the very rays pt traced (one wave's extension and shadow batches, recorded,
@@ -10,8 +10,10 @@
     ray of those Embree calls inside pt against the same calls alone: when the two agree, the
     gap between pt's rate and the raw rate is all in pt's own passes.
 (b) Equal time: relMSE of pt and of Mitsuba volpath (fastest variant here) after the same
-    render time, against a high-spp Mitsuba reference cached under bench/.cache/, each less
-    the reference's own relMSE (estimated from its two independent halves).
+    render time (the iteration end nearest the budget; each run's own time is printed),
+    against a high-spp Mitsuba reference cached under bench/.cache/, each less the
+    reference's own relMSE (estimated from its two independent halves). A relMSE less than
+    10x the reference's own is marked reference-limited and gets no ratio.
 (c) Where pt's time goes: wall time per traced ray in Embree (`intersect`) and in each native
     pass (shade, shadow_rays, resolve_shadows, next_rays, begin_wave, end_wave).
 Numbers are printed, never asserted: timings on a shared machine are noisy.
@@ -20,24 +22,24 @@ Numbers are printed, never asserted: timings on a shared machine are noisy.
 from __future__ import annotations
 
 import argparse
-import hashlib
 import time
-from pathlib import Path
 
 import numpy as np
 
-from compare.metrics import compare_images, reference_error
-from renderer.fingerprint import fingerprints
-from renderer.imageio import read_exr, write_exr
+from benchlib import (
+    add_common_options,
+    at_least,
+    check_options,
+    mitsuba_reference,
+    ratio,
+    relmse_less_reference,
+    scene_at,
+    seconds,
+)
 from renderer.methods import get_method
 from renderer.methods.pt import PathTracing
 from renderer.progressive import run_for
-from renderer.reference import render_reference
-from renderer.scene import load_scene
-from renderer.scene.loader import scene_content_digest
 from renderer.tracer import RayBatch
-
-CACHE = Path(__file__).resolve().parent / ".cache"
 
 
 def raw_embree_rate(scene, threads: int, waves: int = 4) -> tuple[float, float, float, float]:
@@ -150,51 +152,41 @@ def timed(
     return method.image(), dict(method.stats(), seconds=elapsed)
 
 
-def reference(scene, name: str, size: int, spp: int) -> tuple[np.ndarray, float]:
-    """Mitsuba's reference as two independent halves of spp / 2, and the reference's own
-    relMSE estimated from them (compare.metrics.reference_error). Cached under a key of
-    what the reference depends on: the scene's content, the reference code and Mitsuba's
-    version (the workflow's fingerprint), the size and the spp."""
-    what = f"{scene_content_digest(name)}-{fingerprints()['reference']}-{size}-{spp}"
-    key = hashlib.sha256(what.encode()).hexdigest()[:16]
-    halves = []
-    for half, seed in enumerate((12345, 54321)):
-        path = CACHE / f"{name}-{key}-{half}.exr"
-        if not path.exists():
-            print(f"  rendering the reference of {name}, half {half + 1} of 2 ...", flush=True)
-            image, _ = render_reference(scene, spp // 2, seed=seed)
-            write_exr(path, image)
-        halves.append(read_exr(path).astype(np.float64))
-    return 0.5 * (halves[0] + halves[1]), reference_error(*halves)["ref_relmse"]
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scenes", nargs="+", default=["cbox", "cbox-fog", "cbox-grid"])
-    parser.add_argument("--seconds", type=float, default=10.0, help="equal-time budget")
-    parser.add_argument("--size", type=int, default=128, help="film width and height")
-    parser.add_argument("--threads", type=int, default=2)
-    parser.add_argument("--reference-spp", type=int, default=8192)
+    add_common_options(parser, ["cbox", "cbox-fog", "cbox-grid"])
+    parser.set_defaults(size=128)
+    parser.add_argument(
+        "--seconds", type=seconds, default=10.0, help="equal-time budget of pt and Mitsuba"
+    )
+    parser.add_argument(
+        "--reference-spp",
+        type=at_least(2),
+        default=8192,
+        help="samples per pixel of the Mitsuba reference, over its two halves together",
+    )
     args = parser.parse_args()
+    check_options(parser, args)
 
-    rows = []
     for name in args.scenes:
-        scene = load_scene(name, [f"film.width={args.size}", f"film.height={args.size}"])
+        scene = scene_at(name, args.size)
         pt_rate, raw_rate, inside_rate, own = raw_embree_rate(scene, args.threads)
-        ref, floor = reference(scene, name, args.size, args.reference_spp)
-        errors = {}
+        ref, floor = mitsuba_reference(name, args.size, args.reference_spp)
+        errors, runs = {}, {}
         for method_id in ("pt", "mitsuba"):
             image, stats = timed(method_id, scene, args.seconds, args.threads, seed=1)
             # The reference's own error adds to each measured one (independent noise).
-            errors[method_id] = (compare_images(image, ref)["relmse"] - floor, stats)
-        rows.append((name, pt_rate, raw_rate, errors))
+            errors[method_id] = relmse_less_reference(image, ref, floor)
+            limited = "" if errors[method_id][1] else ", reference-limited"
+            runs[method_id] = (
+                f"{errors[method_id][0]:.3e} ({stats['spp']} spp in {stats['seconds']:.2f} s"
+                f"{limited})"
+            )
         print(
             f"{name:<10} pt {pt_rate / 1e6:5.2f} Mrays/s  raw embreex {raw_rate / 1e6:5.2f} Mrays/s"
-            f"  ({pt_rate / raw_rate:4.0%})  |  relMSE at {args.seconds:g} s, less the "
-            f"reference's own {floor:.2e}: "
-            f"pt {errors['pt'][0]:.3e} ({errors['pt'][1]['spp']} spp), "
-            f"mitsuba {errors['mitsuba'][0]:.3e} ({errors['mitsuba'][1]['spp']} spp), "
-            f"mitsuba/pt {errors['mitsuba'][0] / errors['pt'][0]:.2f}x",
+            f"  ({pt_rate / raw_rate:4.0%})  |  relMSE at the iteration end nearest "
+            f"{args.seconds:g} s, less the reference's own {floor:.2e}: pt {runs['pt']}, "
+            f"mitsuba {runs['mitsuba']}, mitsuba/pt {ratio(errors['mitsuba'], errors['pt'])}",
             flush=True,
         )
         print(
@@ -202,9 +194,10 @@ def main() -> None:
             f"{1e9 / raw_rate:.0f} ns alone; pt's own passes: {1e9 * own:.0f} ns per ray",
             flush=True,
         )
-        seconds, rays = pass_breakdown(scene, args.threads)
+        seconds_by_pass, rays = pass_breakdown(scene, args.threads)
         per_ray = ", ".join(
-            f"{k} {1e9 * v / rays:.0f}" for k, v in sorted(seconds.items(), key=lambda kv: -kv[1])
+            f"{k} {1e9 * v / rays:.0f}"
+            for k, v in sorted(seconds_by_pass.items(), key=lambda kv: -kv[1])
         )
         print(f"{name:<10} wall ns per traced ray by pass: {per_ray}", flush=True)
 

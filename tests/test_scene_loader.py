@@ -90,6 +90,14 @@ def test_scene_path_forms(tmp_path, monkeypatch):
     assert load_scene("mine").name == "t"
     with pytest.raises(PgiError, match="not found"):
         load_scene("no-such-scene")
+    # run from the repository, its scenes folder is named once, not twice
+    from renderer.scene.loader import REPO_ROOT
+
+    monkeypatch.chdir(REPO_ROOT)
+    looked = re.escape(f"(looked in {REPO_ROOT / 'scenes'})")
+    with pytest.raises(PgiError, match=f"not found {looked}$"):
+        load_scene("no-such-scene")
+    monkeypatch.chdir(tmp_path)
     # A folder in the working directory named like a scene is used as given; the error
     # says where the scene of that name is.
     (tmp_path / "cbox").mkdir()

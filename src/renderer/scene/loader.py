@@ -115,7 +115,7 @@ def find_scene_file(path: str | Path) -> Path:
         for c in candidates:
             if c.is_file():
                 return c
-        looked = ", ".join(str(c.parent.parent) for c in candidates)
+        looked = ", ".join(dict.fromkeys(str(c.parent.parent) for c in candidates))
         raise PgiError(f"scene {str(path)!r} not found (looked in {looked})")
     raise PgiError(f"{p}: scene file not found")
 
