@@ -784,6 +784,45 @@ def test_sigterm_mid_render_cleans_up_as_ctrl_c_does(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fog.t0.5.exr", "fog.t0.5.json"]
 
 
+def test_a_signal_ends_a_pass_through_dense_media_at_once(tmp_path):
+    """One voxel of optical depth ~10^4: every tentative collision of pm's 65536 photons
+    through the box costs a lookup, and its first pass runs for minutes without returning to
+    Python, whose handlers then never ran: SIGTERM waited over three minutes (a review). Now
+    the signal stops media tracking and the render ends as after Ctrl-C."""
+    import os
+    import signal
+    import time
+
+    density = np.zeros((8, 8, 8), np.float32)
+    density[3, 3, 3] = 1
+    np.save(tmp_path / "one-voxel.npy", density)
+    out = tmp_path / "dense.exr"
+    args = ["render", "cbox-grid", "--method", "pm", "--time", "1", "-q",
+            "--set", f"media.smoke.density={tmp_path / 'one-voxel.npy'}",
+            "--set", "media.smoke.sigma_t=40000", *small("--threads", "1"),
+            "-o", str(out)]  # fmt: skip
+    proc = subprocess.Popen(
+        [*PGI, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+
+    def cpu_seconds() -> float:  # user + system time of the render so far
+        fields = Path(f"/proc/{proc.pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+    deadline = time.monotonic() + 120
+    # loading takes about a second of CPU: past three, the photon pass runs
+    while proc.poll() is None and cpu_seconds() < 3 and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert proc.poll() is None, proc.communicate()
+    proc.send_signal(signal.SIGTERM)
+    try:
+        stdout, stderr = proc.communicate(timeout=30)
+    finally:
+        proc.kill()
+    assert proc.returncode == 143 and stderr.strip().splitlines()[-1] == "pgi: terminated", stderr
+    assert not out.exists()
+
+
 def test_standard_output_that_cannot_be_written(tmp_path):
     """A reader that closes the pipe (`pgi methods | head -0`) ends pgi quietly with SIGPIPE's
     status; a full disk is one line on stderr. Neither is a traceback."""

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from . import __version__
 from .errors import PgiError, caused_by_interrupt, shorten_repr
+from .interrupts import native_passes_interruptible
 
 
 def _floats(text: str) -> list[float]:
@@ -449,7 +450,8 @@ def main(argv: list[str] | None = None) -> int:
     stdout, sys.stdout = sys.stdout, _CheckedStdout(sys.stdout)
     try:
         args = parser.parse_args(argv)  # --help writes to stdout too
-        code = args.func(args)
+        with native_passes_interruptible():
+            code = args.func(args)
         sys.stdout.flush()  # here, not at exit, where its error would escape us
         return code
     except StdoutFailed as e:

@@ -13,6 +13,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "wavefront.h"
@@ -28,6 +29,36 @@ template <typename T>
 using NumpyOut = nb::ndarray<nb::numpy, T>;
 
 inline Vec3 vec(const V3 &a) { return {a[0], a[1], a[2]}; }
+
+// After a pass: if Ctrl-C or SIGTERM arrived meanwhile (interrupt_flag), the pass may have
+// been cut short. Python's handler raises its exception now (KeyboardInterrupt, or the CLI's
+// Terminated); if it does not, a KeyboardInterrupt is raised all the same.
+inline void raise_if_interrupted() {
+    if (!interrupt_flag().exchange(false)) return;
+    if (PyErr_CheckSignals() == 0) PyErr_SetNone(PyExc_KeyboardInterrupt);
+    throw nb::python_error();
+}
+
+// Runs a pass with the GIL released (other Python threads, and Embree calls in them, go on),
+// then raise_if_interrupted.
+template <typename F>
+decltype(auto) released(F &&pass) {
+    using Result = std::invoke_result_t<F>;
+    if constexpr (std::is_void_v<Result>) {
+        {
+            nb::gil_scoped_release release;
+            pass();
+        }
+        raise_if_interrupted();
+    } else {
+        Result out = [&]() -> Result {
+            nb::gil_scoped_release release;
+            return pass();
+        }();
+        raise_if_interrupted();
+        return out;
+    }
+}
 
 inline void check_len(size_t got, size_t want, const char *what) {
     if (got < want) throw std::invalid_argument(std::string(what) + ": buffer too small");
@@ -79,21 +110,18 @@ void def_shadow_passes(nb::class_<Kernel> &cls) {
     cls.def("shadow_rays",
             [](Kernel &k, Array<float> o, Array<float> d, Array<float> t) {
                 RayBuffers b = ray_buffers(o, d, t);
-                nb::gil_scoped_release release;
-                return k.shadow_rays(b);
+                return released([&] { return k.shadow_rays(b); });
             })
         .def("resolve_shadows",
              [](Kernel &k, Array<float> tfar, Array<int32_t> prim) {
                  check_len(tfar.shape(0), prim.shape(0), "tfar");
                  Hits h{tfar.data(), nullptr, nullptr, prim.data(), prim.shape(0)};
-                 nb::gil_scoped_release release;
-                 k.resolve_shadows(h);
+                 released([&] { k.resolve_shadows(h); });
              })
         .def("resolve_occlusion",
              [](Kernel &k, Array<int32_t> blocked) {
                  Hits h{nullptr, nullptr, nullptr, blocked.data(), blocked.shape(0), true};
-                 nb::gil_scoped_release release;
-                 k.resolve_shadows(h);
+                 released([&] { k.resolve_shadows(h); });
              })
         .def_prop_ro("shadows_any_hit", [](const Kernel &k) { return !k.scene().has_null_surfaces; });
 }

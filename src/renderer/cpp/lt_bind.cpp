@@ -105,20 +105,17 @@ void bind_lt(nb::module_ &m) {
              [](LightPathTracer &lp, int64_t it, Array<float> o, Array<float> d, Array<float> t) {
                  RayBuffers b = ray_buffers(o, d, t);
                  check_len(b.capacity, lp.capacity(), "ray buffers");
-                 nb::gil_scoped_release release;
-                 return lp.begin_iteration(it, b);
+                 return released([&] { return lp.begin_iteration(it, b); });
              })
         .def("scatter",
              [](LightPathTracer &lp, Array<float> tfar, Array<int32_t> prim, Array<float> u, Array<float> v) {
                  Hits h = hits_of(tfar, prim, u, v);
-                 nb::gil_scoped_release release;
-                 lp.scatter(h);
+                 released([&] { lp.scatter(h); });
              })
         .def("next_rays",
              [](LightPathTracer &lp, Array<float> o, Array<float> d, Array<float> t) {
                  RayBuffers b = ray_buffers(o, d, t);
-                 nb::gil_scoped_release release;
-                 return lp.next_rays(b);
+                 return released([&] { return lp.next_rays(b); });
              })
         .def("vertices", [](const LightPathTracer &lp) { return vertex_arrays(lp.vertices()); })
         .def("segments", [](const LightPathTracer &lp) { return segment_arrays(lp.segments()); })
@@ -133,8 +130,7 @@ void bind_lt(nb::module_ &m) {
         .def(nb::init<std::shared_ptr<const Scene>, uint64_t, int>(), "scene"_a, "seed"_a, "threads"_a)
         .def("connect",
              [](LightTracer &lt, const LightPathTracer &paths) {
-                 nb::gil_scoped_release release;
-                 return lt.connect(paths);
+                 return released([&] { return lt.connect(paths); });
              })
         .def("end_iteration", &LightTracer::end_iteration, nb::call_guard<nb::gil_scoped_release>())
         .def("image", [](const LightTracer &lt) { return film_image(lt.film()); })

@@ -49,13 +49,12 @@ void bind_media(nb::module_ &m) {
               MediumStats st;
               Vec3 o = vec(origin), d = normalize(vec(direction));
               const Medium &md = s.media.at(medium);
-              {
-                  nb::gil_scoped_release release;
+              released([&] {
                   for (int64_t i = 0; i < n; ++i) {
                       Sampler rng(stream_key(seed, uint64_t(i), 0x7472));
                       out[i] = transmittance(md, o, d, tmax, rng, st).x;
                   }
-              }
+              });
               return std::make_tuple(to_numpy(std::move(out), {size_t(n)}), st.density_lookups);
           }, "scene"_a, "medium"_a, "origin"_a, "direction"_a, "tmax"_a, "seed"_a, "n"_a);
     m.def("sample_phase_table",

@@ -231,7 +231,7 @@ void tentative_collisions(const Medium &m, const Vec3 &o, const Vec3 &d, double 
         if (maj <= 0) return true;
         double t = t0;
         while (depth.next_collision(t, t1, maj, rng))
-            if (!visit(t, maj)) return false;
+            if (interrupted() || !visit(t, maj)) return false;
         return true;
     });
 }
@@ -269,6 +269,7 @@ void ray_march(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax, Sampl
     if (s < 0) return;
     traverse_majorants(m, o, d, tmax, [&](double, double t1, double maj) {
         while (s < end) {
+            if (interrupted()) return false;
             double len = std::min(h, end - s);
             double x = s + u * len;
             if (x >= t1) return true;  // the sample point lies in a later cell
@@ -405,6 +406,7 @@ inline RGB transmittance(const Medium &m, const Vec3 &o, const Vec3 &d, double t
                 if (!roulette_transmittance(tr, rng)) return false;
                 double t = t0;
                 while (depth.next_collision(t, t1, residual, rng)) {
+                    if (interrupted()) return false;
                     // (sigma - minor) / residual is the residual's null-collision ratio.
                     tr *= std::max(0.0, maj - grid_sigma_t(m, o + d * t, stats)) / residual;
                     if (!roulette_transmittance(tr, rng)) return false;

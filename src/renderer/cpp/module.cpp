@@ -246,6 +246,9 @@ static void add_sampling_probes(nb::module_ &m) {
 NB_MODULE(_core, m) {
     m.doc() = "pgi native core: scene, media, sampling and the wavefront kernels of each method";
     m.def("max_threads", []() { return omp_get_max_threads(); });
+    // renderer.interrupts: a signal seen while a pass runs cuts its media tracking short.
+    m.def("request_interrupt", []() { interrupt_flag().store(true); });
+    m.def("clear_interrupt", []() { interrupt_flag().store(false); });
     add_scene(m);
     add_sampling_probes(m);
     bind_pt(m);

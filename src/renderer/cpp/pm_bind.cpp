@@ -63,27 +63,23 @@ void bind_pm(nb::module_ &m) {
         .def_prop_ro("capacity", &PhotonGatherer::capacity)
         .def("build_maps",
              [](PhotonGatherer &g, const LightPathTracer &paths) {
-                 nb::gil_scoped_release release;
-                 g.build_maps(paths);
+                 released([&] { g.build_maps(paths); });
              })
         .def("begin_camera",
              [](PhotonGatherer &g, int64_t it, Array<float> o, Array<float> d, Array<float> t) {
                  RayBuffers b = ray_buffers(o, d, t);
-                 nb::gil_scoped_release release;
-                 return g.begin_camera(it, b);
+                 return released([&] { return g.begin_camera(it, b); });
              })
         .def("shade",
              [](PhotonGatherer &g, Array<float> tfar, Array<int32_t> prim, Array<float> u, Array<float> v,
                 double surface_radius, double volume_radius) {
                  Hits h = hits_of(tfar, prim, u, v);
-                 nb::gil_scoped_release release;
-                 g.shade(h, surface_radius, volume_radius);
+                 released([&] { g.shade(h, surface_radius, volume_radius); });
              })
         .def("next_rays",
              [](PhotonGatherer &g, Array<float> o, Array<float> d, Array<float> t) {
                  RayBuffers b = ray_buffers(o, d, t);
-                 nb::gil_scoped_release release;
-                 return g.next_rays(b);
+                 return released([&] { return g.next_rays(b); });
              })
         .def("end_iteration", &PhotonGatherer::end_iteration, nb::call_guard<nb::gil_scoped_release>())
         .def("image", [](const PhotonGatherer &g) { return film_image(g.film()); })

@@ -35,8 +35,7 @@ void bind_ppb(nb::module_ &m) {
             [](BeamBvh &bvh, Array<double> origins, Array<double> dirs, Array<double> lengths, double radius,
                double max_piece_length) {
                 std::vector<Beam> beams = beams_of(origins, dirs, lengths);
-                nb::gil_scoped_release release;
-                bvh.build(std::move(beams), radius, max_piece_length);
+                released([&] { bvh.build(std::move(beams), radius, max_piece_length); });
             },
             "origins"_a, "directions"_a, "lengths"_a, "radius"_a, "max_piece_length"_a)
         // All hits of a batch of rays: (ray, beam, t_beam, t_ray, distance, sin_theta) arrays,
@@ -83,26 +82,27 @@ void bind_ppb(nb::module_ &m) {
         .def("set_surface_photons", &PhotonBeams::set_surface_photons, "radius"_a, "alpha"_a)
         .def_prop_ro("photons_stored", [](const PhotonBeams &pb) { return pb.stats().photons; })
         .def_prop_ro("capacity", &PhotonBeams::capacity)
-        .def("build_beams", &PhotonBeams::build_beams, "light_paths"_a, "iteration"_a, "max_piece_length"_a,
-             nb::call_guard<nb::gil_scoped_release>())
+        .def(
+            "build_beams",
+            [](PhotonBeams &pb, const LightPathTracer &light, int64_t iteration, double max_piece_length) {
+                released([&] { pb.build_beams(light, iteration, max_piece_length); });
+            },
+            "light_paths"_a, "iteration"_a, "max_piece_length"_a)
         .def("begin_wave",
              [](PhotonBeams &pb, int64_t it, Array<float> o, Array<float> d, Array<float> t) {
                  RayBuffers b = ray_buffers(o, d, t);
                  check_len(b.capacity, pb.capacity(), "ray buffers");
-                 nb::gil_scoped_release release;
-                 return pb.begin_wave(it, b);
+                 return released([&] { return pb.begin_wave(it, b); });
              })
         .def("shade",
              [](PhotonBeams &pb, Array<float> tfar, Array<int32_t> prim, Array<float> u, Array<float> v) {
                  Hits h = hits_of(tfar, prim, u, v);
-                 nb::gil_scoped_release release;
-                 return pb.shade(h);
+                 return released([&] { return pb.shade(h); });
              })
         .def("next_rays",
              [](PhotonBeams &pb, Array<float> o, Array<float> d, Array<float> t) {
                  RayBuffers b = ray_buffers(o, d, t);
-                 nb::gil_scoped_release release;
-                 return pb.next_rays(b);
+                 return released([&] { return pb.next_rays(b); });
              })
         .def("end_wave", &PhotonBeams::end_wave, nb::call_guard<nb::gil_scoped_release>())
         .def("image", [](const PhotonBeams &pb) { return film_image(pb.film()); })

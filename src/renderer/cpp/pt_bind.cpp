@@ -17,20 +17,17 @@ void bind_pt(nb::module_ &m) {
              [](PathTracer &pt, int64_t it, Array<float> o, Array<float> d, Array<float> t) {
                  RayBuffers b = ray_buffers(o, d, t);
                  check_len(b.capacity, pt.capacity(), "ray buffers");
-                 nb::gil_scoped_release release;
-                 return pt.begin_wave(it, b);
+                 return released([&] { return pt.begin_wave(it, b); });
              })
         .def("shade",
              [](PathTracer &pt, Array<float> tfar, Array<int32_t> prim, Array<float> u, Array<float> v) {
                  Hits h = hits_of(tfar, prim, u, v);
-                 nb::gil_scoped_release release;
-                 return pt.shade(h);
+                 return released([&] { return pt.shade(h); });
              })
         .def("next_rays",
              [](PathTracer &pt, Array<float> o, Array<float> d, Array<float> t) {
                  RayBuffers b = ray_buffers(o, d, t);
-                 nb::gil_scoped_release release;
-                 return pt.next_rays(b);
+                 return released([&] { return pt.next_rays(b); });
              })
         .def("end_wave", &PathTracer::end_wave, nb::call_guard<nb::gil_scoped_release>())
         .def("image", [](const PathTracer &pt) { return film_image(pt.film()); })
