@@ -15,13 +15,19 @@ import contextlib
 import os
 import select
 import signal
+import sys
 import threading
 from collections.abc import Iterator
 
-from . import _core
-
 _WATCHED = {int(signal.SIGINT), int(signal.SIGTERM)}
 _STOP = 0  # no signal has number 0: the byte that ends the watcher
+
+
+def _core_loaded():
+    """The native core if a method loaded it, else None: then no pass runs to interrupt.
+    Not imported here: what `pgi reference` imports must not include it (its fingerprint
+    would follow the C++ sources, and every change of them would rerun the references)."""
+    return sys.modules.get(f"{__package__}._core")
 
 
 @contextlib.contextmanager
@@ -40,12 +46,12 @@ def native_passes_interruptible() -> Iterator[None]:
             numbers = os.read(read_end, 512)
             if _STOP in numbers:
                 return
-            if _WATCHED.intersection(numbers):
-                _core.request_interrupt()
+            core = _core_loaded()
+            if core is not None and _WATCHED.intersection(numbers):
+                core.request_interrupt()
 
     watcher = threading.Thread(target=watch, name="pgi-interrupts", daemon=True)
     watcher.start()
-    _core.clear_interrupt()
     try:
         yield
     finally:
@@ -54,4 +60,6 @@ def native_passes_interruptible() -> Iterator[None]:
         watcher.join()
         os.close(read_end)
         os.close(write_end)
-        _core.clear_interrupt()  # a signal whose handler ended the command already
+        core = _core_loaded()
+        if core is not None:
+            core.clear_interrupt()  # a signal whose handler ended the command already

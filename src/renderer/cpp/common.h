@@ -13,11 +13,9 @@ namespace pgi {
 // Set from Python (renderer.interrupts) when Ctrl-C or SIGTERM arrives while a pass runs
 // without the GIL: media tracking, whose cost has no bound in dense media, stops early, and
 // the binding raises after the pass (bindings.h, `released`), so no cut-short result is used.
-inline std::atomic<bool> &interrupt_flag() {
-    static std::atomic<bool> flag{false};
-    return flag;
-}
-inline bool interrupted() { return interrupt_flag().load(std::memory_order_relaxed); }
+inline std::atomic<bool> g_interrupt{false};  // one for the module (a C++17 inline variable)
+inline std::atomic<bool> &interrupt_flag() { return g_interrupt; }
+inline bool interrupted() { return g_interrupt.load(std::memory_order_relaxed); }
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kInvPi = 1.0 / kPi;
