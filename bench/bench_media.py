@@ -62,8 +62,9 @@ def pt_shadow_rays(name: str, n_rays: int, seed: int, threads: int, res: int = 3
     grid fills exactly the box of its null boundary, so a segment outside the medium meets no
     voxel: it costs no lookup and adds no variance, whichever estimator."""
     scene = scene_at(name, res)
-    method = PathTracing(scene, seed=seed, threads=threads, params={"spp_per_wave": 1})
-    if method.kernel.shadows_any_hit:
+    # One lane: its batches, and so the segments recorded, come in one order every run.
+    method = PathTracing(scene, seed=seed, threads=1, params={"spp_per_wave": 1})
+    if method.lanes[0].shadows_any_hit:
         raise SystemExit(f"{name}: no null boundaries, hence no media to measure")
     null = method.native.per_triangle(
         scene, [scene.materials[s.material].type == "null" for s in scene.shapes]
@@ -73,7 +74,7 @@ def pt_shadow_rays(name: str, n_rays: int, seed: int, threads: int, res: int = 3
 
     def recording(batch, n):
         hits = intersect(batch, n)
-        if batch is method.shadows:
+        if batch is method.shadows[0]:
             tfar, prim = np.asarray(hits[0], np.float64), np.asarray(hits[1])
             arrives = prim < 0
             length = np.where(arrives, batch.tmax[:n], tfar)

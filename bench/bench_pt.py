@@ -4,25 +4,30 @@
                              [--reference-spp 8192] [--threads 2]
 
 (a) Ray throughput: pt's rays per second over whole waves (after a warm-up wave), against
-    raw embreex on the very rays pt traced (one wave's extension and shadow batches, recorded,
-    then re-traced alone by the same tracer with the same thread count and the same query:
-    closest hit, or occlusion for shadow rays in scenes without null boundaries). Also the time per
-    ray of those Embree calls inside pt against the same calls alone: when the two agree, the
-    gap between pt's rate and the raw rate is all in pt's own passes.
+    raw embreex on the very rays pt traced (one wave's extension and shadow batches, recorded
+    per lane, then traced again by Embree alone on as many threads, asking the same queries:
+    closest hit, or occlusion for shadow rays in scenes without null boundaries; the faster
+    of pt's own batches and one whole batch per query split across the threads). Also the
+    time per ray of those Embree calls inside pt against the same calls alone: when the two
+    agree, the gap between pt's rate and the raw rate is all in pt's own passes.
 (b) Equal time: relMSE of pt and of Mitsuba volpath (fastest variant here) after the same
     render time (the iteration end nearest the budget; each run's own time is printed),
     against a high-spp Mitsuba reference cached under bench/.cache/, each less the
     reference's own relMSE (estimated from its two independent halves). A relMSE less than
     10x the reference's own is marked reference-limited and gets no ratio.
-(c) Where pt's time goes: wall time per traced ray in Embree (`intersect`) and in each native
-    pass (shade, shadow_rays, resolve_shadows, next_rays, begin_wave, end_wave).
+(c) Where pt's time goes: time per traced ray in Embree (`intersect`, `occluded`) and in each
+    native pass of the lanes (next_rays, shade, shadow_rays, resolve_shadows or
+    resolve_occlusion), summed over the lanes and divided by their number.
 Numbers are printed, never asserted: timings on a shared machine are noisy.
 """
 
 from __future__ import annotations
 
 import argparse
+import threading
 import time
+from collections import defaultdict
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -45,8 +50,12 @@ from renderer.tracer import RayBatch
 def raw_embree_rate(scene, threads: int, waves: int = 4) -> tuple[float, float, float, float]:
     """(pt rays/s, raw embreex rays/s, embreex rays/s inside pt, seconds per ray of pt's own
     passes): pt over `waves` warm waves (best wave), then the rays of one more wave, recorded
-    (with the time of each Embree call) and re-traced alone by the same tracer (best of 3).
-    The recorded wave's time, less its Embree calls and the recording's copies, is pt's own."""
+    (with the time of each Embree call, per lane) and traced again by Embree alone, best of
+    3, in the faster of two ways: each lane's batches on its own thread, all at once (as pt
+    traced them), or every ray of a query in one batch split evenly across the threads
+    (embreex's best case: no small batches). The recorded wave's time on all lanes, less
+    their Embree calls and the recording's copies, is pt's own; per ray, it is divided by
+    the lanes, as wall time on that many cores."""
     method = PathTracing(scene, seed=11, threads=threads, params={})
     method.run_iteration(0)  # warm-up: first-touch page faults, thread pools
     pt_rate = 0.0
@@ -57,8 +66,9 @@ def raw_embree_rate(scene, threads: int, waves: int = 4) -> tuple[float, float, 
         pt_rate = max(pt_rate, (method.tracer.rays_traced - rays) / seconds)
 
     tracer = method.tracer
-    batches = []  # (query, origins, directions, tmax) of each Embree call of the wave
-    inside = copying = 0.0  # seconds of the recorded wave's Embree calls and copies
+    batches = defaultdict(list)  # lane thread -> (query, origins, directions, tmax) per call
+    inside = copying = 0.0  # thread-seconds of the recorded wave's Embree calls and copies
+    lock = threading.Lock()
 
     def recording(query):
         original = getattr(tracer, query)
@@ -66,18 +76,15 @@ def raw_embree_rate(scene, threads: int, waves: int = 4) -> tuple[float, float, 
         def call(batch, n):
             nonlocal inside, copying
             start = time.perf_counter()
-            batches.append(
-                (
-                    query,
-                    batch.origins[:n].copy(),
-                    batch.directions[:n].copy(),
-                    batch.tmax[:n].copy(),
-                )
-            )
+            rays = batch.origins[:n].copy(), batch.directions[:n].copy(), batch.tmax[:n].copy()
+            record = (query, *rays)
             traced = time.perf_counter()
             result = original(batch, n)
-            inside += time.perf_counter() - traced
-            copying += traced - start
+            done = time.perf_counter()
+            with lock:
+                batches[threading.get_ident()].append(record)
+                inside += done - traced
+                copying += traced - start
             return result
 
         return call
@@ -91,28 +98,51 @@ def raw_embree_rate(scene, threads: int, waves: int = 4) -> tuple[float, float, 
         wave = time.perf_counter() - start
     finally:
         del tracer.intersect, tracer.occluded
-    rays = sum(len(b[1]) for b in batches)
+    lanes = list(batches.values())
+    rays = sum(len(b[1]) for lane in lanes for b in lane)
 
-    replay = []
-    for query, o, d, t in batches:
-        b = RayBatch(len(o))
-        b.origins[:], b.directions[:] = o, d
-        replay.append((getattr(tracer, query), b, t))
-    best = np.inf
-    for _ in range(3):
-        start = time.perf_counter()
+    def as_batches(records):
+        out = []
+        for query, o, d, t in records:
+            b = RayBatch(len(o))
+            b.origins[:], b.directions[:] = o, d
+            out.append((getattr(tracer, query), b, t))
+        return out
+
+    def trace_all(replay):
         for trace, b, t in replay:
             b.tmax[:] = t
             trace(b, len(t))
-        best = min(best, time.perf_counter() - start)
-    return pt_rate, rays / best, rays / inside, (wave - inside - copying) / rays
+
+    def best_of_3(parts) -> float:
+        best = np.inf
+        with ThreadPoolExecutor(max(1, len(parts))) as pool:
+            for _ in range(3):
+                start = time.perf_counter()
+                list(pool.map(trace_all, parts))
+                best = min(best, time.perf_counter() - start)
+        return best
+
+    as_traced = [as_batches(lane) for lane in lanes]
+    merged = []  # per query, every ray in one batch, then split across the threads
+    for query in ("intersect", "occluded"):
+        records = [b for lane in lanes for b in lane if b[0] == query]
+        if records:
+            o, d, t = (np.concatenate([r[i] for r in records]) for i in (1, 2, 3))
+            chunks = np.array_split(np.arange(len(t)), threads)
+            merged += [(query, o[c], d[c], t[c]) for c in chunks]
+    whole = [as_batches(merged[i::threads]) for i in range(threads)]
+    raw = min(best_of_3(as_traced), best_of_3(whole))
+    own = (wave * len(lanes) - inside - copying) / len(lanes)
+    return pt_rate, rays / raw, rays / (inside / len(lanes)), own / rays
 
 
 class _PassTimer:
-    """Wraps a kernel or tracer object: wall seconds spent in each of its methods."""
+    """Wraps a kernel, lane or tracer object: seconds spent in each of its methods, summed
+    over the threads that call them."""
 
-    def __init__(self, target, seconds: dict[str, float]) -> None:
-        self._target, self._seconds = target, seconds
+    def __init__(self, target, seconds: dict[str, float], lock: threading.Lock) -> None:
+        self._target, self._seconds, self._lock = target, seconds, lock
 
     def __getattr__(self, name: str):
         attr = getattr(self._target, name)
@@ -124,24 +154,27 @@ class _PassTimer:
             try:
                 return attr(*args, **kwargs)
             finally:
-                self._seconds[name] = self._seconds.get(name, 0.0) + time.perf_counter() - start
+                with self._lock:
+                    self._seconds[name] = self._seconds.get(name, 0.0) + time.perf_counter() - start
 
         return call
 
 
 def pass_breakdown(scene, threads: int, waves: int = 10) -> tuple[dict[str, float], int]:
-    """Wall seconds per pass (Embree's `intersect` and each native kernel pass) over warm
-    waves, and the rays traced meanwhile."""
+    """Seconds per pass (Embree's `intersect` and `occluded`, each native lane pass), summed
+    over the lanes and divided by their number, over warm waves, and the rays traced
+    meanwhile."""
     method = PathTracing(scene, seed=13, threads=threads, params={})
     method.run_iteration(0)
     seconds: dict[str, float] = {}
-    method.kernel = _PassTimer(method.kernel, seconds)
+    lock = threading.Lock()
+    method.lanes = [_PassTimer(lane, seconds, lock) for lane in method.lanes]
     tracer = method.tracer
-    method.tracer = _PassTimer(tracer, seconds)
+    method.tracer = _PassTimer(tracer, seconds, lock)
     rays = tracer.rays_traced
     for i in range(1, waves + 1):
         method.run_iteration(i)
-    return seconds, tracer.rays_traced - rays
+    return {k: v / len(method.lanes) for k, v in seconds.items()}, tracer.rays_traced - rays
 
 
 def timed(

@@ -65,7 +65,7 @@ def test_render_writes_image_sidecar_and_snapshots(tmp_path):
         assert key in info
     assert info["method"] == "pt" and info["seed"] == 5 and info["nonfinite"] == 0
     # every method parameter with the value used, though none was given
-    assert info["params"] == {} and set(info["method_params"]) == {"spp_per_wave"}
+    assert info["params"] == {} and set(info["method_params"]) == {"spp_per_wave", "slots_per_lane"}
     # the code it ran: `version` alone is the same for every commit
     assert info["code"] == json.loads(pgi("fingerprint").stdout)["render"]
     # the final image is the iteration end nearest 0.4 s
@@ -757,7 +757,8 @@ def test_budgets_end_at_the_nearest_iteration_end(tmp_path, monkeypatch):
     assert got == [(1.0, 0.7), (1.5, pytest.approx(1.3)), (2.0, pytest.approx(1.9))]
 
 
-def test_sigterm_mid_render_cleans_up_as_ctrl_c_does(tmp_path):
+@pytest.mark.parametrize("threads", ["1", "2"])  # 2: pt's lanes trace on two threads
+def test_sigterm_mid_render_cleans_up_as_ctrl_c_does(tmp_path, threads):
     """SIGTERM (a cancelled workflow job, `timeout`) ends a render as Ctrl-C does: the
     finished snapshot stays whole, no final image and no temporary file are left, one line
     says so, and the exit status is 128 + 15."""
@@ -766,7 +767,7 @@ def test_sigterm_mid_render_cleans_up_as_ctrl_c_does(tmp_path):
 
     out = tmp_path / "fog.exr"
     args = ["render", "cbox-fog", "--method", "pt", "--time", "60", "--snapshots", "0.5",
-            *small("--threads", "1"), "-o", str(out)]  # fmt: skip
+            *small("--threads", threads), "-o", str(out)]  # fmt: skip
     proc = subprocess.Popen(
         [*PGI, *args], stdout=subprocess.PIPE,
         stderr=subprocess.PIPE, text=True,

@@ -17,6 +17,8 @@ BAD = [
     ("pt", "spp_per_wave", "abc", INT_1),
     ("pt", "spp_per_wave", 0, INT_1),
     ("pt", "spp_per_wave", 2.5, INT_1),
+    ("pt", "slots_per_lane", 0, "an integer >= 1 and <= 1048576"),
+    ("pt", "slots_per_lane", 2**21, "an integer >= 1 and <= 1048576"),
     ("lt", "light_paths", [1, 2], INT_1),
     ("lt", "max_records", -1, INT_1),
     ("pm", "photons", True, INT_1),
@@ -88,7 +90,7 @@ def test_sppm_takes_both_radii_without_its_default_scale():
 @pytest.mark.parametrize(
     "method, key, value",
     [
-        ("pt", "spp_per_wave", 100_000),
+        ("pt", "spp_per_wave", 1_000_000),  # 256 million paths at 64 bytes: 15 GiB
         ("pm", "spp_per_iteration", 100_000),
         ("pm", "photons", 10**8),
         ("sppm", "spp_per_iteration", 100_000),
@@ -102,8 +104,9 @@ def test_batches_beyond_half_the_memory_are_refused_before_any_work(
     monkeypatch, method, key, value
 ):
     """On a 16x16 film: 25.6 million camera paths (or 1e8 light paths) per batch, ~15 GiB at
-    the bound of 640 bytes a path (Mitsuba: 128 million samples of 128 bytes), on a machine
-    of 24 GiB; Linux used to grant the memory and then kill the render."""
+    the bound of 640 bytes a path (pt: 256 million paths of 64 bytes; Mitsuba: 128 million
+    samples of 128 bytes), on a machine of 24 GiB; Linux used to grant the memory and then
+    kill the render."""
     import renderer.methods.params as params
 
     monkeypatch.setattr(params, "physical_memory", lambda: 24 * 2**30)

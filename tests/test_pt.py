@@ -39,6 +39,25 @@ def test_same_samples_same_image_whatever_the_wave_size():
     assert np.array_equal(images[0], images[1]) and np.array_equal(images[0], images[2])
 
 
+def test_same_image_whatever_the_lanes_and_their_slots():
+    """A wave streams through its lanes, each keeping slots_per_lane paths in flight and
+    refilling a slot as soon as its path ends: a slot, a few, more than the wave has paths,
+    on one lane or two, give the very same image and counts."""
+    scene = load_small("cbox-grid", 16, 16)
+    runs = []
+    for threads, slots in ((1, 1), (2, 1), (2, 7), (1, 300), (2, 4096)):
+        method = PathTracing(
+            scene, seed=3, threads=threads, params={"spp_per_wave": 2, "slots_per_lane": slots}
+        )
+        for i in range(2):
+            method.run_iteration(i)
+        stats = method.stats()
+        runs.append((method.image(), stats["rays"], stats["density_lookups"]))
+    assert runs[0][0].max() > 0 and runs[0][2] > 0
+    for image, rays, lookups in runs[1:]:
+        assert np.array_equal(image, runs[0][0]) and (rays, lookups) == runs[0][1:]
+
+
 def test_other_seed_other_image():
     scene = load_small("cbox-fog", 16, 16)
     assert not np.array_equal(_render(scene, 1, 1, seed=1), _render(scene, 1, 1, seed=2))
@@ -104,9 +123,9 @@ def test_occlusion_queries_give_the_image_of_closest_hits(name):
     scene = load_small(name, 24, 24)
     any_hit = PathTracing(scene, seed=5, threads=2, params={"spp_per_wave": 2})
     closest = PathTracing(scene, seed=5, threads=2, params={"spp_per_wave": 2})
-    assert any_hit.kernel.shadows_any_hit
+    assert all(lane.shadows_any_hit for lane in any_hit.lanes)
     counter = any_hit.tracer.occluded = _CountingOcclusion(any_hit.tracer)
-    closest.kernel = _ClosestHitShadows(closest.kernel)
+    closest.lanes = [_ClosestHitShadows(lane) for lane in closest.lanes]
     for i in range(3):
         any_hit.run_iteration(i)
         closest.run_iteration(i)
@@ -116,10 +135,10 @@ def test_occlusion_queries_give_the_image_of_closest_hits(name):
 
 
 def test_occlusion_query_refused_where_shadow_rays_cross_null_boundaries():
-    kernel = PathTracing(load_small("cbox-fog", 8, 8), seed=0, threads=1, params={}).kernel
-    assert not kernel.shadows_any_hit
+    lane = PathTracing(load_small("cbox-fog", 8, 8), seed=0, threads=1, params={}).lanes[0]
+    assert not lane.shadows_any_hit
     with pytest.raises(ValueError, match="null boundaries"):
-        kernel.resolve_occlusion(np.zeros(0, np.int32))
+        lane.resolve_occlusion(np.zeros(0, np.int32))
 
 
 def test_occluded_agrees_with_closest_hits_within_tmax():
@@ -149,3 +168,60 @@ def test_occluded_agrees_with_closest_hits_within_tmax():
     batch.tmax[:] = 0
     assert not np.any(tracer.occluded(batch, n) >= 0)
     assert not np.any(tracer.intersect(batch, n)[1] >= 0)
+
+
+class _SignalsItsEnd:
+    """Wraps a lane: `done` is set when its next_rays finds nothing left to trace."""
+
+    def __init__(self, lane, done) -> None:
+        self._lane, self._done = lane, done
+
+    def next_rays(self, *buffers):
+        n = self._lane.next_rays(*buffers)
+        if n == 0:
+            self._done.set()
+        return n
+
+    def __getattr__(self, name: str):
+        return getattr(self._lane, name)
+
+
+@pytest.mark.parametrize("failing", ["main", "pool", "pool-after-main"])
+def test_an_error_in_one_lane_ends_the_wave_and_the_next_wave_runs(failing):
+    """A lane that fails on one thread stops the wave with its error (the other lane ends
+    too, not at the wave's end; or the failure comes after the other lane has ended), and
+    the method renders the same waves afterwards: no interrupt is left pending."""
+    import threading
+
+    scene = load_small("cbox-fog", 16, 16)
+    method = PathTracing(scene, seed=2, threads=2, params={"spp_per_wave": 2, "slots_per_lane": 16})
+    reference = PathTracing(scene, seed=2, threads=1, params={"spp_per_wave": 2})
+    intersect, calls, main_done = method.tracer.intersect, [], threading.Event()
+    lanes = method.lanes
+    method.lanes = [_SignalsItsEnd(lanes[0], main_done), *lanes[1:]]
+
+    failed_at = []  # the number of calls when the lane failed
+
+    def failing_intersect(batch, n):
+        on_main = threading.current_thread() is threading.main_thread()
+        calls.append(on_main)
+        fails = (failing == "main") == on_main and len(calls) > 8
+        if failing == "pool-after-main" and not on_main:
+            assert main_done.wait(60)
+            fails = True
+        if fails:
+            failed_at.append(len(calls))
+            raise RuntimeError("lane failed")
+        return intersect(batch, n)
+
+    method.tracer.intersect = failing_intersect
+    with pytest.raises(RuntimeError, match="lane failed"):
+        method.run_iteration(0)
+    # the other lane stopped at its next pass: at most one more Embree call, none after it
+    assert len(failed_at) == 1 and len(calls) <= failed_at[0] + 1
+    del method.tracer.intersect
+    method.lanes = lanes
+    for i in range(2):
+        method.run_iteration(i)
+        reference.run_iteration(i)
+    assert np.array_equal(method.image(), reference.image())

@@ -7,6 +7,7 @@ kernels offset ray origins off surfaces themselves.
 
 from __future__ import annotations
 
+import threading
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -31,7 +32,9 @@ class RayBatch:
 
 
 class EmbreeTracer:
-    """All scene triangles in one Embree mesh; primitive ids index the native triangle list."""
+    """All scene triangles in one Embree mesh; primitive ids index the native triangle list.
+    With threads > 1 a large batch is split across threads; with threads == 1 every batch is
+    traced on the calling thread, which may be one of several tracing at once (pt's lanes)."""
 
     def __init__(self, triangles: np.ndarray, threads: int) -> None:
         self._scene = rtcore_scene.EmbreeScene()
@@ -40,6 +43,7 @@ class EmbreeTracer:
         # The calling thread traces a chunk itself: the pool holds the other threads.
         self._pool = ThreadPoolExecutor(self.threads - 1) if self.threads > 1 else None
         self.rays_traced = 0
+        self._count_lock = threading.Lock()  # callers on several threads count their rays
 
     def _closest(self, batch: RayBatch, lo: int, hi: int) -> dict:
         return self._scene.run(
@@ -53,7 +57,8 @@ class EmbreeTracer:
 
     def _split(self, run, batch: RayBatch, n: int) -> list:
         """run(batch, lo, hi) over the first n rays, in one chunk per thread when worth it."""
-        self.rays_traced += n
+        with self._count_lock:
+            self.rays_traced += n
         chunks = self.threads if self._pool and n >= 2 * _MIN_RAYS_PER_THREAD else 1
         if chunks == 1:
             return [run(batch, 0, n)]

@@ -30,10 +30,22 @@ using NumpyOut = nb::ndarray<nb::numpy, T>;
 
 inline Vec3 vec(const V3 &a) { return {a[0], a[1], a[2]}; }
 
+// The interpreter's main thread, the one that runs Python's signal handlers (set when the
+// module loads, from `threading`).
+inline unsigned long g_main_thread_ident = 0;
+
 // After a pass: if Ctrl-C or SIGTERM arrived meanwhile (interrupt_flag), the pass may have
-// been cut short. Python's handler raises its exception now (KeyboardInterrupt, or the CLI's
-// Terminated); if it does not, a KeyboardInterrupt is raised all the same.
+// been cut short. On the main thread the flag is cleared and Python's handler raises its
+// exception now (KeyboardInterrupt, or the CLI's Terminated); if it does not, a
+// KeyboardInterrupt is raised all the same. Another thread (one of pt's lanes) cannot run
+// the handler: it raises KeyboardInterrupt and leaves the flag set, so that the other lanes
+// stop at their next pass too and the main thread still sees the signal.
 inline void raise_if_interrupted() {
+    if (!interrupt_flag().load()) return;
+    if (PyThread_get_thread_ident() != g_main_thread_ident) {
+        PyErr_SetNone(PyExc_KeyboardInterrupt);
+        throw nb::python_error();
+    }
     if (!interrupt_flag().exchange(false)) return;
     if (PyErr_CheckSignals() == 0) PyErr_SetNone(PyExc_KeyboardInterrupt);
     throw nb::python_error();

@@ -13,11 +13,13 @@ from ..scene.model import Film
 
 # Memory one path of a batch may take (its state, rays, shadow rays and records): rough,
 # generous bounds. Measured as the growth of peak memory from 1 to 4 million paths: camera
-# paths 475 bytes (pt on cbox-grid), 462 (ppb) and 247 (pm) on cbox-fog; Mitsuba's
+# paths 462 bytes (ppb) and 247 (pm) on cbox-fog; pt, whose paths in flight are a few
+# thousand a lane, keeps 24 bytes per path of the wave (its radiance; cbox-grid); Mitsuba's
 # wavefront 84-94 bytes per sample (cbox-fog, cbox-grid); light paths with their vertex,
 # photon and beam records 1.7 KB (pm, sppm), 2.5 KB (lt) and 3.3 KB (ppb), in the peak
 # memory of 2 million paths through cbox-fog.
 CAMERA_PATH_BYTES = 640
+PT_WAVE_PATH_BYTES = 64
 MITSUBA_SAMPLE_BYTES = 128
 LIGHT_PATH_BYTES = 4096
 

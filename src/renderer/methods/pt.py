@@ -5,25 +5,34 @@ methods for light transport simulation" (ch. 9, MIS); Pharr, Jakob and
 Humphreys, "Physically Based Rendering" 4th ed. (ch. 14, volumetric paths).
 The estimator itself is the native kernel in ``cpp/pt.cpp``; this file is
 the sequence of passes of one iteration.
+
+An iteration is a wave of ``spp_per_wave`` camera paths per pixel, streamed through one
+lane per thread: each lane keeps ``slots_per_lane`` paths in flight and refills a slot from
+the wave as soon as its path ends, and runs its passes (trace, shade, shadow rays, next
+rays) on its own thread, Embree calls included. The image does not depend on the number of
+lanes or slots.
 """
 
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor, wait
 
 import numpy as np
 
 from .. import _core
 from ..engine import build_native_scene
-from ..passes import trace_camera_wave
+from ..passes import resolve_shadow_rays
 from ..scene.model import Scene
 from ..tracer import EmbreeTracer, RayBatch
-from .params import MethodParams, budget_divisor
+from .params import PT_WAVE_PATH_BYTES, MethodParams, budget_divisor
 
-# Paths per wave: enough to amortise the Python passes over the native kernels, few enough
-# that a wave's path and shadow-ray state (~10 MB) stays in cache between passes: at 128x128
-# on 2 cores, 2 spp per wave traced 8-12 % more rays per second than 4 (and than 1).
+# Paths per wave: enough that the wave's tail (its last, longest paths, traced in ever smaller
+# batches) is short against the wave.
 _TARGET_WAVE_PATHS = 1 << 15
+# Paths in flight per lane: enough rays per Embree call and per pass to amortise their calls
+# from Python, few enough that a lane's path and shadow-ray state stays near the core.
+_SLOTS_PER_LANE = 4096
 
 
 def wave_spp(pixels: int, spp_budget: int | None) -> int:
@@ -32,10 +41,30 @@ def wave_spp(pixels: int, spp_budget: int | None) -> int:
     return budget_divisor(max(1, math.ceil(_TARGET_WAVE_PATHS / pixels)), spp_budget)
 
 
+def trace_lane(lane, tracer: EmbreeTracer, paths: RayBatch, shadows: RayBatch) -> None:
+    """One lane's share of a wave: trace / shade / shadows / next rays until the wave has no
+    path left to start and every path of the lane has ended."""
+    active = lane.next_rays(*paths.buffers)
+    while active:
+        if lane.shade(*tracer.intersect(paths, active)):
+            resolve_shadow_rays(lane, tracer, shadows)
+        active = lane.next_rays(*paths.buffers)
+
+
+def _pool_lane(lane, tracer: EmbreeTracer, paths: RayBatch, shadows: RayBatch) -> None:
+    """trace_lane on a pool thread: if it fails, the lane on the main thread stops at its next
+    pass instead of finishing its share of the wave first."""
+    try:
+        trace_lane(lane, tracer, paths, shadows)
+    except BaseException:
+        _core.request_interrupt()
+        raise
+
+
 class PathTracing:
     id = "pt"
     description = "volumetric path tracing, next-event estimation and MIS"
-    parameters = frozenset({"spp_per_wave"})
+    parameters = frozenset({"spp_per_wave", "slots_per_lane"})
 
     def __init__(
         self, scene: Scene, *, seed: int, threads: int, params: dict, spp_budget: int | None = None
@@ -43,26 +72,56 @@ class PathTracing:
         pixels = scene.film.width * scene.film.height
         p = MethodParams(self.id, params, self.parameters)
         spp_per_wave = p.spp_per_iteration("spp_per_wave", wave_spp(pixels, spp_budget), spp_budget)
-        p.camera_paths_fit_in_memory("spp_per_wave", spp_per_wave, scene.film)
+        p.camera_paths_fit_in_memory("spp_per_wave", spp_per_wave, scene.film, PT_WAVE_PATH_BYTES)
+        slots = p.integer("slots_per_lane", _SLOTS_PER_LANE, lo=1, hi=1 << 20)
         self.method_params = p.used
         self.native = build_native_scene(scene)
-        self.tracer = EmbreeTracer(self.native.triangles, threads)
+        lanes = max(1, threads)
+        # Each lane traces its own batches on its own thread: the tracer never splits them.
+        self.tracer = EmbreeTracer(self.native.triangles, 1)
         self.kernel = _core.PathTracer(
             self.native.core,
             scene.integrator.max_depth,
             scene.integrator.rr_depth,
             seed,
             spp_per_wave,
-            threads,
+            lanes,
+            slots,
         )
-        self.paths = RayBatch(self.kernel.capacity)
-        self.shadows = RayBatch(self.kernel.capacity)
+        self.lanes = [self.kernel.lane(i) for i in range(lanes)]
+        self.paths = [RayBatch(slots) for _ in range(lanes)]
+        self.shadows = [RayBatch(slots) for _ in range(lanes)]
+        self._pool = ThreadPoolExecutor(lanes - 1) if lanes > 1 else None
         self.spp_per_wave = spp_per_wave
         self.iterations = 0
 
     def run_iteration(self, iteration: int) -> None:
-        """One wave: spp_per_wave camera paths per pixel, traced bounce by bounce."""
-        trace_camera_wave(self.kernel, self.tracer, self.paths, self.shadows, iteration)
+        """One wave: spp_per_wave camera paths per pixel, streamed through the lanes (the
+        first on this thread, the others on the pool's)."""
+        self.kernel.begin_wave(iteration)
+        batches = zip(self.lanes, self.paths, self.shadows, strict=True)
+        work = [(lane, self.tracer, paths, shadows) for lane, paths, shadows in batches]
+        others = [self._pool.submit(_pool_lane, *w) for w in work[1:]] if self._pool else []
+        try:
+            trace_lane(*work[0])
+        except BaseException as error:
+            if not others:
+                raise
+            # The other lanes stop at their next pass (as after a signal), not at the wave's
+            # end. If this lane stopped because another failed, that failure is the error.
+            _core.request_interrupt()
+            wait(others)
+            _core.clear_interrupt()
+            failures = [f.exception() for f in others]
+            failed = next((e for e in failures if not isinstance(e, KeyboardInterrupt)), None)
+            if isinstance(error, KeyboardInterrupt) and failed is not None:
+                raise failed from None
+            raise
+        for f in others:
+            if f.exception() is not None:
+                _core.clear_interrupt()  # the flag that lane raised for this one
+                raise f.exception()
+        self.kernel.end_wave()
         self.iterations += 1
 
     def image(self) -> np.ndarray:
