@@ -2,19 +2,19 @@
 
 Three tables (numbers are reported, never asserted; timings are noisy on a shared machine):
 
-1. Shadow-ray transmittance on ``smoke`` and ``cbox-grid``: the shadow-ray segments pt traces
-   there (recorded from its Embree calls, each weighted alike); per estimator the mean density
-   lookups per ray, the mean per-ray variance, and the efficiency 1 / (variance x lookups),
-   absolute and relative
-   to delta tracking on the same majorant grid. The renderer's majorant grid (MAJORANT_CELL
-   voxels per cell) is swept against coarser ones up to a single global majorant (Mitsuba's
-   choice). Looser majorants add lookups to both; they leave delta tracking's variance at
-   T(1 - T) but shrink ratio tracking's (each factor 1 - sigma / majorant nears 1), so ratio
-   tracking's lead grows with them; with tight majorants its factors near 0 and it behaves
-   like delta tracking that cannot stop early. rel_abs_error: mean |per-ray mean - truth| /
-   mean truth, truth = residual ratio tracking with 4096 samples; for the unbiased estimators
-   it is noise, for ray marching (step: half a voxel, biased, near-zero variance) it is mostly
-   its bias.
+1. Shadow-ray transmittance on ``smoke`` and ``cbox-grid``: the shadow-ray segments pt
+   traces there (recorded from its Embree calls, each weighted alike); per estimator the
+   mean density lookups per ray, the mean per-ray variance, and the efficiency 1 / (variance
+   x lookups), absolute and relative to delta tracking on the same majorant grid, and
+   relative to it by time per sample too (lookups leave out DDA steps and set-up; timed, so
+   noisy). The renderer's majorant grid (MAJORANT_CELL voxels per cell) is swept against
+   coarser ones up to a single global majorant (Mitsuba's choice). Looser majorants add
+   lookups to both; they leave delta tracking's variance at T(1 - T) but shrink ratio
+   tracking's (each factor 1 - sigma / majorant nears 1), so ratio tracking's lead grows
+   with them; with tight majorants its factors near 0 and it behaves like delta tracking
+   that cannot stop early. rel_abs_error: mean |per-ray mean - truth| / mean truth, truth =
+   residual ratio tracking with 4096 samples; for the unbiased estimators it is noise, for
+   ray marching (step: half a voxel, biased, near-zero variance) it is mostly its bias.
 2. Equal-time renders with pt per estimator: relMSE against a long reference (pt, residual
    ratio tracking, another seed; its own error is estimated from two halves), lookups per path.
 3. Equal time on ``smoke``: pt with the best estimator against Mitsuba volpath (global
@@ -128,11 +128,15 @@ def shadow_table(name: str, cell: int, rays: list[Ray], samples: int = 256) -> l
                      "variance": var, "us_per_ray": 1e6 * seconds / (n_rays * samples),
                      "efficiency": 1 / (var * per_ray) if var > 0 and per_ray > 0 else np.inf,
                      "rel_abs_error": bias})  # fmt: skip
-    base = next(r["efficiency"] for r in rows if r["estimator"] == "delta")
+    delta = next(r for r in rows if r["estimator"] == "delta")
     for r in rows:
         # Ray marching's variance hides its bias: an efficiency would mean nothing there.
         biased = r["estimator"] == "raymarch"
-        r["efficiency_vs_delta"] = float("nan") if biased else r["efficiency"] / base
+        r["efficiency_vs_delta"] = float("nan") if biased else r["efficiency"] / delta["efficiency"]
+        # The same by time per sample: lookups leave out the DDA steps and each ray's set-up
+        # (timed, hence noisy on a shared machine).
+        by_time = (delta["variance"] * delta["us_per_ray"]) / (r["variance"] * r["us_per_ray"])
+        r["time_efficiency_vs_delta"] = float("nan") if biased else by_time
     return rows
 
 
@@ -247,7 +251,8 @@ def main() -> None:
         rays = pt_shadow_rays(s, args.shadow_rays, seed=1, threads=args.threads)
         rows += [r for c in cells for r in shadow_table(s, c, rays)]
     columns = ["scene", "majorant_cell", "estimator", "lookups_per_ray", "variance", "us_per_ray",
-               "efficiency", "efficiency_vs_delta", "rel_abs_error"]  # fmt: skip
+               "efficiency", "efficiency_vs_delta", "time_efficiency_vs_delta",
+               "rel_abs_error"]  # fmt: skip
     print_table(rows, columns)
 
     print(f"2./3. Equal-time renders, {args.size}x{args.size}, {args.time:g} s each\n")
