@@ -53,7 +53,7 @@ def rel_mse(x: np.ndarray, ref: np.ndarray) -> float:
 # --------------------------------------------------------------------------- 1. shadow rays
 
 
-def pt_shadow_rays(name: str, n_rays: int, seed: int, threads: int, res: int = 32) -> list[Ray]:
+def pt_shadow_rays(name: str, n_rays: int, seed: int, res: int = 32) -> list[Ray]:
     """(origin, direction, length) of the first ``n_rays`` shadow-ray segments whose
     transmittance pt evaluates on scene ``name`` (``res`` x ``res``, one path per pixel and
     wave, waves until there are enough), recorded from its Embree calls: a segment runs to its
@@ -62,7 +62,8 @@ def pt_shadow_rays(name: str, n_rays: int, seed: int, threads: int, res: int = 3
     grid fills exactly the box of its null boundary, so a segment outside the medium meets no
     voxel: it costs no lookup and adds no variance, whichever estimator."""
     scene = scene_at(name, res)
-    # One lane: its batches, and so the segments recorded, come in one order every run.
+    # One lane (whatever --threads): its batches, and so the segments recorded, come in one
+    # order every run.
     method = PathTracing(scene, seed=seed, threads=1, params={"spp_per_wave": 1})
     if method.lanes[0].shadows_any_hit:
         raise SystemExit(f"{name}: no null boundaries, hence no media to measure")
@@ -248,7 +249,7 @@ def main() -> None:
     cells = args.cells or [MAJORANT_CELL, 2 * MAJORANT_CELL, 4 * MAJORANT_CELL, 0]
     rows = []
     for s in args.scenes:
-        rays = pt_shadow_rays(s, args.shadow_rays, seed=1, threads=args.threads)
+        rays = pt_shadow_rays(s, args.shadow_rays, seed=1)
         rows += [r for c in cells for r in shadow_table(s, c, rays)]
     columns = ["scene", "majorant_cell", "estimator", "lookups_per_ray", "variance", "us_per_ray",
                "efficiency", "efficiency_vs_delta", "time_efficiency_vs_delta",

@@ -178,3 +178,20 @@ def test_memory_bound_follows_the_machine(monkeypatch):
     with pytest.raises(PgiError, match="lower method.light_paths or the film's size$"):
         get_method("lt")(load_small("cbox", 1024, 1024), seed=0, threads=1, params={},
                          spp_budget=1)  # fmt: skip
+
+
+def test_pt_bounds_its_wave_paths_and_its_film(monkeypatch):
+    """pt keeps path state only for its lanes' slots: 24 bytes per path of a wave (bounded at
+    64) and its film, image and writing 58 a pixel (bounded at 128). On 24 GiB an 8000x8000
+    film fits at one sample per pixel per wave (the 640-byte bound refused 4600x4600), and
+    9000x9000 is refused before any work, for the film's size."""
+    import renderer.methods.params as params
+    from renderer.methods.pt import PathTracing
+
+    monkeypatch.setattr(params, "physical_memory", lambda: 24 * 2**30)
+    args = (params.PT_WAVE_PATH_BYTES, params.PT_PIXEL_BYTES)
+    params.MethodParams("pt", {}, ()).camera_paths_fit_in_memory(
+        "spp_per_wave", 1, Film(8000, 8000), *args
+    )
+    with pytest.raises(PgiError, match=r"about 14 GiB, .*: lower the film's size$"):
+        PathTracing(load_small("cbox", 9000, 9000), seed=0, threads=1, params={})

@@ -1,8 +1,10 @@
 """Pass sequences shared by methods whose native kernels follow the camera-path protocol.
 
 A camera-path kernel offers ``begin_wave``, ``shade``, ``shadow_rays``, ``resolve_shadows``,
-``next_rays`` and ``end_wave`` (see cpp/camera_path.h); this module is the one Python loop
-that drives them, bounce by bounce, with Embree tracing every batch in between.
+``next_rays`` and ``end_wave`` (see cpp/camera_path.h); ``trace_camera_wave`` is the one
+Python loop that drives them (ppb's gathering), bounce by bounce, with Embree tracing every
+batch in between. ``resolve_shadow_rays`` serves every kernel or lane with a shadow-ray
+queue: pt's lanes (methods/pt.py), ppb and lt.
 """
 
 from __future__ import annotations

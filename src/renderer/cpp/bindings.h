@@ -30,9 +30,12 @@ using NumpyOut = nb::ndarray<nb::numpy, T>;
 
 inline Vec3 vec(const V3 &a) { return {a[0], a[1], a[2]}; }
 
-// The interpreter's main thread, the one that runs Python's signal handlers (set when the
-// module loads, from `threading`).
-inline unsigned long g_main_thread_ident = 0;
+// Whether this is the interpreter's main thread, the one that runs Python's signal handlers
+// (asked of `threading` each time: after a fork the main thread may be another).
+inline bool on_main_thread() {
+    nb::object main = nb::module_::import_("threading").attr("main_thread")();
+    return nb::cast<unsigned long>(main.attr("ident")) == PyThread_get_thread_ident();
+}
 
 // After a pass: if Ctrl-C or SIGTERM arrived meanwhile (interrupt_flag), the pass may have
 // been cut short. On the main thread the flag is cleared and Python's handler raises its
@@ -42,7 +45,7 @@ inline unsigned long g_main_thread_ident = 0;
 // stop at their next pass too and the main thread still sees the signal.
 inline void raise_if_interrupted() {
     if (!interrupt_flag().load()) return;
-    if (PyThread_get_thread_ident() != g_main_thread_ident) {
+    if (!on_main_thread()) {
         PyErr_SetNone(PyExc_KeyboardInterrupt);
         throw nb::python_error();
     }

@@ -1,6 +1,6 @@
 // Camera paths: the state and the steps shared by every method that traces
-// from the camera (pt, and the gathering paths of ppb; pm reuses the wave
-// bookkeeping). Each step is one piece of volumetric path tracing with NEE
+// from the camera (pt's lanes, and the gathering paths of ppb; ppb and pm also
+// use the whole-wave bookkeeping below: start_camera_wave, write_alive_rays). Each step is one piece of volumetric path tracing with NEE
 // and MIS (Veach 1997, ch. 9), with Mitsuba volpath's conventions: depth
 // counts real scattering events, null crossings are free, Russian roulette
 // after rr_depth events on max(throughput) * eta^2.

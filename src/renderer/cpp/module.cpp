@@ -249,7 +249,6 @@ NB_MODULE(_core, m) {
     // renderer.interrupts: a signal seen while a pass runs cuts its media tracking short.
     m.def("request_interrupt", []() { interrupt_flag().store(true); });
     m.def("clear_interrupt", []() { interrupt_flag().store(false); });
-    g_main_thread_ident = nb::cast<unsigned long>(nb::module_::import_("threading").attr("main_thread")().attr("ident"));
     add_scene(m);
     add_sampling_probes(m);
     bind_pt(m);

@@ -29,7 +29,6 @@ void PathTracer::begin_wave(int64_t iteration) {
     // Mitsuba: max_depth 0 renders black; the wave then has no path to trace.
     next_path_.store(max_depth_ == 0 ? wave_paths_ : 0);
     for (auto &l : lanes_) l->reset();
-    paths_traced_ += uint64_t(wave_paths_);
 }
 
 int64_t PathTracer::claim(int64_t count, int64_t &n) {
@@ -42,6 +41,7 @@ void PathTracer::end_wave() {
     const int64_t npix = int64_t(film_.width) * film_.height;
     for (int64_t i = 0; i < wave_paths_; ++i) film_.add(i % npix, radiance_[size_t(i)]);
     film_.samples_per_pixel += uint64_t(spp_per_wave_);
+    if (max_depth_ != 0) paths_traced_ += uint64_t(wave_paths_);
     for (auto &l : lanes_) {
         stats_ += l->stats_;
         l->stats_ = MediumStats{};
@@ -59,6 +59,7 @@ void PathTracerLane::reset() {
     std::fill(path_of_slot_.begin(), path_of_slot_.end(), -1);
     for (CameraPath &p : slots_) p.alive = false;
     shadow_.clear();
+    stats_ = MediumStats{};  // a wave cut short counts for nothing
     claimed_ = claimed_end_ = 0;
 }
 

@@ -14,12 +14,15 @@ from ..scene.model import Film
 # Memory one path of a batch may take (its state, rays, shadow rays and records): rough,
 # generous bounds. Measured as the growth of peak memory from 1 to 4 million paths: camera
 # paths 462 bytes (ppb) and 247 (pm) on cbox-fog; pt, whose paths in flight are a few
-# thousand a lane, keeps 24 bytes per path of the wave (its radiance; cbox-grid); Mitsuba's
+# thousand a lane, keeps 24 bytes per path of the wave (its radiance; cbox-grid), and its film
+# with the image handed back and written about 60 bytes a pixel more (82 in all at one path
+# per pixel, 1 to 4 million pixels on cbox; the other methods' bounds cover their film); Mitsuba's
 # wavefront 84-94 bytes per sample (cbox-fog, cbox-grid); light paths with their vertex,
 # photon and beam records 1.7 KB (pm, sppm), 2.5 KB (lt) and 3.3 KB (ppb), in the peak
 # memory of 2 million paths through cbox-fog.
 CAMERA_PATH_BYTES = 640
 PT_WAVE_PATH_BYTES = 64
+PT_PIXEL_BYTES = 128
 MITSUBA_SAMPLE_BYTES = 128
 LIGHT_PATH_BYTES = 4096
 
@@ -109,26 +112,35 @@ class MethodParams:
         what: str = "camera paths",
         remedy: str = "",
         path_bytes: int = CAMERA_PATH_BYTES,
+        extra_bytes: int = 0,
     ) -> None:
-        """Refuse a batch of paths whose state would take over half the machine's memory:
-        Linux grants such allocations and then kills the process, with no message. The
-        message says to lower `remedy` (default: the parameter `key`)."""
+        """Refuse a batch of paths whose state (with `extra_bytes` besides) would take over
+        half the machine's memory: Linux grants such allocations and then kills the process,
+        with no message. The message says to lower `remedy` (default: the parameter `key`)."""
         total = physical_memory()
-        if total and paths * path_bytes > total // 2:
+        needed = paths * path_bytes + extra_bytes
+        if total and needed > total // 2:
             raise PgiError(
                 f"method {self.method}: {key} gives batches of {paths:,} {what}, about "
-                f"{paths * path_bytes / 2**30:.0f} GiB, more than half this machine's "
+                f"{needed / 2**30:.0f} GiB, more than half this machine's "
                 f"{total / 2**30:.0f} GiB: lower {remedy or f'method.{key}'}"
             )
 
     def camera_paths_fit_in_memory(
-        self, key: str, spp: int, film: Film, path_bytes: int = CAMERA_PATH_BYTES
+        self,
+        key: str,
+        spp: int,
+        film: Film,
+        path_bytes: int = CAMERA_PATH_BYTES,
+        pixel_bytes: int = 0,
     ) -> None:
-        """paths_fit_in_memory for a batch of `spp` camera paths per pixel of `film`; at one
-        per pixel only the film's size can be lowered."""
-        paths = spp * film.width * film.height
+        """paths_fit_in_memory for a batch of `spp` camera paths per pixel of `film`, with
+        `pixel_bytes` a pixel besides; at one per pixel only the film's size can be lowered."""
+        pixels = film.width * film.height
         remedy = "the film's size" if spp == 1 else f"method.{key} or the film's size"
-        self.paths_fit_in_memory(key, paths, "camera paths", remedy, path_bytes)
+        self.paths_fit_in_memory(
+            key, spp * pixels, "camera paths", remedy, path_bytes, pixels * pixel_bytes
+        )
 
     def light_paths_fit_in_memory(self, key: str, paths: int, remedy: str = "") -> None:
         """paths_fit_in_memory for a batch of light paths, which keep their records."""

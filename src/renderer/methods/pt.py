@@ -16,6 +16,7 @@ lanes or slots.
 from __future__ import annotations
 
 import math
+import threading
 from concurrent.futures import ThreadPoolExecutor, wait
 
 import numpy as np
@@ -25,7 +26,7 @@ from ..engine import build_native_scene
 from ..passes import resolve_shadow_rays
 from ..scene.model import Scene
 from ..tracer import EmbreeTracer, RayBatch
-from .params import PT_WAVE_PATH_BYTES, MethodParams, budget_divisor
+from .params import PT_PIXEL_BYTES, PT_WAVE_PATH_BYTES, MethodParams, budget_divisor
 
 # Paths per wave: enough that the wave's tail (its last, longest paths, traced in ever smaller
 # batches) is short against the wave.
@@ -41,23 +42,27 @@ def wave_spp(pixels: int, spp_budget: int | None) -> int:
     return budget_divisor(max(1, math.ceil(_TARGET_WAVE_PATHS / pixels)), spp_budget)
 
 
-def trace_lane(lane, tracer: EmbreeTracer, paths: RayBatch, shadows: RayBatch) -> None:
+def trace_lane(
+    lane, tracer: EmbreeTracer, paths: RayBatch, shadows: RayBatch, stop: threading.Event
+) -> None:
     """One lane's share of a wave: trace / shade / shadows / next rays until the wave has no
-    path left to start and every path of the lane has ended."""
+    path left to start and every path of the lane has ended, or until `stop` is set."""
     active = lane.next_rays(*paths.buffers)
-    while active:
+    while active and not stop.is_set():
         if lane.shade(*tracer.intersect(paths, active)):
             resolve_shadow_rays(lane, tracer, shadows)
         active = lane.next_rays(*paths.buffers)
 
 
-def _pool_lane(lane, tracer: EmbreeTracer, paths: RayBatch, shadows: RayBatch) -> None:
-    """trace_lane on a pool thread: if it fails, the lane on the main thread stops at its next
-    pass instead of finishing its share of the wave first."""
+def _pool_lane(
+    lane, tracer: EmbreeTracer, paths: RayBatch, shadows: RayBatch, stop: threading.Event
+) -> None:
+    """trace_lane on a pool thread: if it fails, the other lanes stop at their next step
+    instead of finishing their share of the wave first."""
     try:
-        trace_lane(lane, tracer, paths, shadows)
+        trace_lane(lane, tracer, paths, shadows, stop)
     except BaseException:
-        _core.request_interrupt()
+        stop.set()
         raise
 
 
@@ -72,7 +77,9 @@ class PathTracing:
         pixels = scene.film.width * scene.film.height
         p = MethodParams(self.id, params, self.parameters)
         spp_per_wave = p.spp_per_iteration("spp_per_wave", wave_spp(pixels, spp_budget), spp_budget)
-        p.camera_paths_fit_in_memory("spp_per_wave", spp_per_wave, scene.film, PT_WAVE_PATH_BYTES)
+        p.camera_paths_fit_in_memory(
+            "spp_per_wave", spp_per_wave, scene.film, PT_WAVE_PATH_BYTES, PT_PIXEL_BYTES
+        )
         slots = p.integer("slots_per_lane", _SLOTS_PER_LANE, lo=1, hi=1 << 20)
         self.method_params = p.used
         self.native = build_native_scene(scene)
@@ -97,30 +104,40 @@ class PathTracing:
 
     def run_iteration(self, iteration: int) -> None:
         """One wave: spp_per_wave camera paths per pixel, streamed through the lanes (the
-        first on this thread, the others on the pool's)."""
+        first on this thread, the others on the pool's). Every lane has ended when this
+        returns or raises: if one fails, or a signal arrives, the others stop at their next
+        step, and the error raised is this thread's (a signal's exception, say) or else the
+        first lane's that is not an interrupt."""
         self.kernel.begin_wave(iteration)
+        stop = threading.Event()
         batches = zip(self.lanes, self.paths, self.shadows, strict=True)
-        work = [(lane, self.tracer, paths, shadows) for lane, paths, shadows in batches]
+        work = [(lane, self.tracer, paths, shadows, stop) for lane, paths, shadows in batches]
         others = [self._pool.submit(_pool_lane, *w) for w in work[1:]] if self._pool else []
+        error, cut_short = None, False
         try:
             trace_lane(*work[0])
-        except BaseException as error:
-            if not others:
-                raise
-            # The other lanes stop at their next pass (as after a signal), not at the wave's
-            # end. If this lane stopped because another failed, that failure is the error.
-            _core.request_interrupt()
-            wait(others)
-            _core.clear_interrupt()
-            failures = [f.exception() for f in others]
-            failed = next((e for e in failures if not isinstance(e, KeyboardInterrupt)), None)
-            if isinstance(error, KeyboardInterrupt) and failed is not None:
-                raise failed from None
-            raise
-        for f in others:
-            if f.exception() is not None:
-                _core.clear_interrupt()  # the flag that lane raised for this one
-                raise f.exception()
+        except BaseException as e:
+            error = e
+        while True:  # until every lane has ended, whatever arrives meanwhile
+            if error is not None and others and not cut_short:
+                stop.set()
+                _core.request_interrupt()  # a pass through dense media ends now, too
+                cut_short = True
+            try:
+                # In short waits: a signal that arrives just before this thread blocks is
+                # handled within one of them, not once the other lanes end (seconds later).
+                if not wait(others, timeout=0.05).not_done:
+                    break
+            except BaseException as e:  # a signal's handler raised while this thread waited
+                error = error or e
+        failures = [f.exception() for f in others if f.exception() is not None]
+        if cut_short or failures:
+            _core.clear_interrupt()  # every lane has ended: the flag stops nothing more
+        if error is not None:
+            raise error
+        real = [e for e in failures if not isinstance(e, KeyboardInterrupt)]
+        if failures:
+            raise (real or failures)[0]
         self.kernel.end_wave()
         self.iterations += 1
 
