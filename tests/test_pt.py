@@ -249,8 +249,8 @@ def test_a_signal_while_waiting_for_the_other_lanes_stops_them_before_it_is_rais
 
     scene = load_small("cbox-fog", 32, 32)
     method = PathTracing(scene, seed=2, threads=2, params={"slots_per_lane": 16})
-    intersect, main_done = method.tracer.intersect, threading.Event()
-    method.lanes = [_SignalsItsEnd(method.lanes[0], main_done), *method.lanes[1:]]
+    intersect, main_done, lanes = method.tracer.intersect, threading.Event(), method.lanes
+    method.lanes = [_SignalsItsEnd(lanes[0], main_done), *lanes[1:]]
     pool_calls, signalled = [], []
 
     def slow_on_the_pool(batch, n):  # its share of the wave takes seconds
@@ -278,6 +278,6 @@ def test_a_signal_while_waiting_for_the_other_lanes_stops_them_before_it_is_rais
     assert len(pool_calls) == calls  # nothing traced after run_iteration raised
     assert all(t < raised for t in pool_calls)
     del method.tracer.intersect
-    method.lanes = method.lanes[:1] + method.lanes[1:]
+    method.lanes = lanes
     method.run_iteration(1)  # no interrupt left pending
     assert method.iterations == 1

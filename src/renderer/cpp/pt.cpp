@@ -41,7 +41,6 @@ void PathTracer::end_wave() {
     const int64_t npix = int64_t(film_.width) * film_.height;
     for (int64_t i = 0; i < wave_paths_; ++i) film_.add(i % npix, radiance_[size_t(i)]);
     film_.samples_per_pixel += uint64_t(spp_per_wave_);
-    if (max_depth_ != 0) paths_traced_ += uint64_t(wave_paths_);
     for (auto &l : lanes_) {
         stats_ += l->stats_;
         l->stats_ = MediumStats{};

@@ -32,7 +32,6 @@ class PathTracerLane {
 public:
     PathTracerLane(PathTracer &owner, size_t slots);
 
-    size_t capacity() const { return slots_.size(); }
     // Retires the paths that ended (their radiance to the wave), gives their slots the
     // wave's next paths, and writes the rays of the paths in flight; returns their count.
     // The first call of a wave fills every slot.
@@ -65,7 +64,6 @@ public:
 
     int lanes() const { return int(lanes_.size()); }
     PathTracerLane &lane(int i);
-    size_t capacity() const { return lanes_.front()->capacity(); }  // rays per lane batch
     // Pass 1: a new wave (iteration `iteration`); the lanes then trace it.
     void begin_wave(int64_t iteration);
     // Last pass: add the wave's paths to the film, in path order.
@@ -74,8 +72,6 @@ public:
     const Film &film() const { return film_; }
     uint64_t density_lookups() const { return stats_.density_lookups; }
     uint64_t media_segments() const { return stats_.segments; }
-    uint64_t paths_traced() const { return paths_traced_; }
-    const Scene &scene() const { return *scene_; }
 
 private:
     friend class PathTracerLane;
@@ -93,7 +89,6 @@ private:
     std::vector<std::unique_ptr<PathTracerLane>> lanes_;
     Film film_;
     MediumStats stats_;
-    uint64_t paths_traced_ = 0;
 };
 
 }  // namespace pgi

@@ -10,7 +10,7 @@ using namespace nb::literals;
 void bind_pt(nb::module_ &m) {
     nb::class_<PathTracerLane> lane_class(m, "PathTracerLane");
     def_shadow_passes(lane_class);
-    lane_class.def_prop_ro("capacity", &PathTracerLane::capacity)
+    lane_class
         .def("shade",
              [](PathTracerLane &lane, Array<float> tfar, Array<int32_t> prim, Array<float> u, Array<float> v) {
                  Hits h = hits_of(tfar, prim, u, v);
@@ -24,8 +24,6 @@ void bind_pt(nb::module_ &m) {
     nb::class_<PathTracer>(m, "PathTracer")
         .def(nb::init<std::shared_ptr<const Scene>, int, int, uint64_t, int, int, int>(), "scene"_a, "max_depth"_a,
              "rr_depth"_a, "seed"_a, "spp_per_wave"_a, "lanes"_a, "slots_per_lane"_a)
-        .def_prop_ro("capacity", &PathTracer::capacity)
-        .def_prop_ro("lanes", &PathTracer::lanes)
         .def("lane", &PathTracer::lane, "index"_a, nb::rv_policy::reference_internal)
         .def("begin_wave", &PathTracer::begin_wave, "iteration"_a, nb::call_guard<nb::gil_scoped_release>())
         .def("end_wave", &PathTracer::end_wave, nb::call_guard<nb::gil_scoped_release>())
@@ -33,8 +31,7 @@ void bind_pt(nb::module_ &m) {
         .def_prop_ro("samples_per_pixel", [](const PathTracer &pt) { return pt.film().samples_per_pixel; })
         .def_prop_ro("nonfinite", [](const PathTracer &pt) { return pt.film().nonfinite; })
         .def_prop_ro("density_lookups", &PathTracer::density_lookups)
-        .def_prop_ro("media_segments", &PathTracer::media_segments)
-        .def_prop_ro("paths_traced", &PathTracer::paths_traced);
+        .def_prop_ro("media_segments", &PathTracer::media_segments);
 }
 
 }  // namespace pgi::bind

@@ -46,21 +46,15 @@ def trace_lane(
     lane, tracer: EmbreeTracer, paths: RayBatch, shadows: RayBatch, stop: threading.Event
 ) -> None:
     """One lane's share of a wave: trace / shade / shadows / next rays until the wave has no
-    path left to start and every path of the lane has ended, or until `stop` is set."""
-    active = lane.next_rays(*paths.buffers)
-    while active and not stop.is_set():
-        if lane.shade(*tracer.intersect(paths, active)):
-            resolve_shadow_rays(lane, tracer, shadows)
-        active = lane.next_rays(*paths.buffers)
-
-
-def _pool_lane(
-    lane, tracer: EmbreeTracer, paths: RayBatch, shadows: RayBatch, stop: threading.Event
-) -> None:
-    """trace_lane on a pool thread: if it fails, the other lanes stop at their next step
-    instead of finishing their share of the wave first."""
+    path left to start and every path of the lane has ended, or until `stop` is set. If the
+    lane fails, it sets `stop`: the others end at their next step instead of finishing their
+    share of the wave first."""
     try:
-        trace_lane(lane, tracer, paths, shadows, stop)
+        active = lane.next_rays(*paths.buffers)
+        while active and not stop.is_set():
+            if lane.shade(*tracer.intersect(paths, active)):
+                resolve_shadow_rays(lane, tracer, shadows)
+            active = lane.next_rays(*paths.buffers)
     except BaseException:
         stop.set()
         raise
@@ -112,7 +106,7 @@ class PathTracing:
         stop = threading.Event()
         batches = zip(self.lanes, self.paths, self.shadows, strict=True)
         work = [(lane, self.tracer, paths, shadows, stop) for lane, paths, shadows in batches]
-        others = [self._pool.submit(_pool_lane, *w) for w in work[1:]] if self._pool else []
+        others = [self._pool.submit(trace_lane, *w) for w in work[1:]] if self._pool else []
         error, cut_short = None, False
         try:
             trace_lane(*work[0])
@@ -135,8 +129,8 @@ class PathTracing:
             _core.clear_interrupt()  # every lane has ended: the flag stops nothing more
         if error is not None:
             raise error
-        real = [e for e in failures if not isinstance(e, KeyboardInterrupt)]
         if failures:
+            real = [e for e in failures if not isinstance(e, KeyboardInterrupt)]
             raise (real or failures)[0]
         self.kernel.end_wave()
         self.iterations += 1
