@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -757,6 +758,30 @@ def test_budgets_end_at_the_nearest_iteration_end(tmp_path, monkeypatch):
     assert got == [(1.0, 0.7), (1.5, pytest.approx(1.3)), (2.0, pytest.approx(1.9))]
 
 
+def test_a_failed_final_write_names_the_snapshots_it_kept(tmp_path, monkeypatch, capsys):
+    """The final image cannot be written (a full disk): the snapshots written before stay, and
+    the note says so, as after a failure mid-render (it once said nothing of them)."""
+    from renderer import cli, progressive
+    from renderer.errors import PgiError
+
+    write = progressive.write_image_and_sidecar
+    out = tmp_path / "fog.exr"
+
+    def full_disk(path, image, info):
+        if path == out:
+            raise PgiError(f"{out.with_suffix('.json')}: cannot write: No space left on device")
+        write(path, image, info)
+
+    monkeypatch.setattr(progressive, "write_image_and_sidecar", full_disk)
+    args = ["render", "cbox-fog", "--method", "pt", "--spp", "2", "--snapshots", "0.000001",
+            "-q", "-o", str(out)]  # fmt: skip
+    assert cli.main([*args, *small("--threads", "1")]) == 2
+    err = capsys.readouterr().err
+    assert f"note: no final image; kept {tmp_path / 'fog.t1e-06.exr'}" in err, err
+    assert "No space left on device" in err and "Traceback" not in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fog.t1e-06.exr", "fog.t1e-06.json"]
+
+
 @pytest.mark.parametrize("threads", ["1", "2"])  # 2: pt's lanes trace on two threads
 def test_sigterm_mid_render_cleans_up_as_ctrl_c_does(tmp_path, threads):
     """SIGTERM (a cancelled workflow job, `timeout`) ends a render as Ctrl-C does: the
@@ -912,6 +937,23 @@ def test_outputs_never_overwrite_a_file_the_scene_reads(tmp_path):
         assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
         assert "which the scene reads" in r.stderr, r.stderr
     assert scene.read_bytes() == before and not (tmp_path / "shot.exr").exists()
+
+
+def test_outputs_never_overwrite_a_file_an_override_names(tmp_path):
+    """A phase table named only by --set is read by the scene too: `-o phase.exr` beside
+    `phase.json` would have replaced the table by the sidecar, with exit 0."""
+    for name in ("cbox", "cbox-fog"):  # cbox-fog includes ../cbox/box.yaml
+        shutil.copytree(SCENES / name, tmp_path / name)
+    table = tmp_path / "cbox-fog" / "phase.json"
+    table.write_text("[1, 2, 3]")
+    phase = "media.fog.phase={type: tabulated, file: phase.json}"
+    fog = tmp_path / "cbox-fog"
+    for args in (["render", str(fog), "--method", "pt", "--spp", "1"],
+                 ["reference", str(fog), "--spp", "1"]):  # fmt: skip
+        r = pgi(*args, *small(), "--set", phase, "-o", str(fog / "phase.exr"))
+        assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+        assert "which the scene reads" in r.stderr and len(r.stderr.splitlines()) == 1, r.stderr
+    assert table.read_text() == "[1, 2, 3]" and not (fog / "phase.exr").exists()
 
 
 def test_radiance_beyond_float32_is_a_clear_error(tmp_path):

@@ -698,6 +698,9 @@ def test_mesh_files_that_hold_no_usable_triangles(tmp_path):
         ("0 1\n90 2\n180 5\n", "a table of shape \\[3, 2\\]"),  # angles beside values
         ("0.5 0.8\n2.0\n9.0\n", "lines hold different counts of numbers; write one number per"),
         ("", "holds no numbers"),
+        # One value in a .npy (read as a memory map, which numpy's squeeze once failed on).
+        (np.array([1.0]), "needs >= 2 values"),
+        (np.array([[1.0]]), "needs >= 2 values"),
     ],
 )
 def test_tabulated_phase_files_of_the_wrong_kind(tmp_path, content, pattern):

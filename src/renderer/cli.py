@@ -11,6 +11,7 @@ import platform
 import signal
 import sys
 import threading
+from collections.abc import Sequence
 from pathlib import Path
 
 from . import __version__
@@ -72,12 +73,15 @@ def split_sets(items: list[str], command: str = "render") -> tuple[list[str], di
     return overrides, params
 
 
-def _refuse_overwriting_the_scene(scene: str, outputs: list[Path]) -> None:
-    """No image or sidecar may replace a file the scene reads (its YAML, meshes, grids)."""
+def _refuse_overwriting_the_scene(
+    scene: str, outputs: list[Path], overrides: Sequence[str] = ()
+) -> None:
+    """No image or sidecar may replace a file the scene reads (its YAML, meshes, grids, and
+    what the --set overrides name)."""
     from .scene.loader import scene_sources
 
     try:
-        sources = {p.resolve() for p in scene_sources(scene)}
+        sources = {p.resolve() for p in scene_sources(scene, overrides)}
     except PgiError:  # no such scene: loading it says so
         return
     for out in outputs:
@@ -101,8 +105,8 @@ def cmd_render(args: argparse.Namespace) -> int:
                            f"{path.name}")  # fmt: skip
     for path in snapshot_files:
         check_output_path(path)
-    _refuse_overwriting_the_scene(args.scene, [out, *snapshot_files])
     overrides, params = split_sets(args.set)
+    _refuse_overwriting_the_scene(args.scene, [out, *snapshot_files], overrides)
     check_overrides(args.method, overrides)
     scene = load_scene(args.scene, overrides)
     settings = RenderSettings(
@@ -144,9 +148,9 @@ def cmd_reference(args: argparse.Namespace) -> int:
     from .scene import load_scene
 
     out = check_output_path(args.output)
-    _refuse_overwriting_the_scene(args.scene, [out])
-    check_threads(args.threads)
     overrides, _ = split_sets(args.set, "reference")
+    _refuse_overwriting_the_scene(args.scene, [out], overrides)
+    check_threads(args.threads)
     check_overrides("mitsuba", overrides)  # the reference is Mitsuba's (volpath or volpathmis)
     scene = load_scene(args.scene, overrides)
     bar = Progress(None, args.spp, enabled=not args.quiet)

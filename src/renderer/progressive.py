@@ -284,5 +284,12 @@ def render(
             file=sys.stderr,
         )
     final = sidecar(render_seconds, None)
-    write(out, final)
+    try:
+        write(out, final)
+    except BaseException:  # e.g. a full disk: the snapshots written so far stay, and are named
+        if written:
+            print(
+                f"note: no final image; kept {', '.join(str(p) for p in written)}", file=sys.stderr
+            )
+        raise
     return final

@@ -652,7 +652,8 @@ def _phase(val: _Validator, d: Any, p: KeyPath) -> Phase:
                     val.fail(p + ("file",), f"{file} holds no numbers")
             if values.dtype.kind not in "fiu":
                 val.fail(p + ("file",), f"{file}: expected numbers, got {values.dtype}")
-            if np.squeeze(values).ndim > 1:  # e.g. a column of angles beside the values
+            # (squeezed as a plain array: numpy's squeeze of a one-value memory map fails)
+            if np.squeeze(np.asarray(values)).ndim > 1:  # e.g. a column of angles beside them
                 val.fail(
                     p + ("file",),
                     f"{file}: expected one list of values, got a table of shape "
@@ -661,6 +662,9 @@ def _phase(val: _Validator, d: Any, p: KeyPath) -> Phase:
             values = np.asarray(values, np.float64).ravel()
             if not np.all(np.isfinite(values)) or np.any(values < 0):
                 val.fail(p + ("file",), f"{file}: values must be finite and >= 0")
+            if len(values) < 2:
+                val.fail(p + ("file",), f"{file}: a tabulated phase function needs >= 2 "
+                                        f"values, got {len(values)}")  # fmt: skip
         if len(values) < 2 or not values.max() > 0:
             val.fail(p, "a tabulated phase function needs >= 2 values, not all 0")
         # Only the shape matters (both renderers normalise); scaled to a peak of 1 it sums
