@@ -163,6 +163,7 @@ def test_bad_scene_gives_one_line_error_and_no_output(tmp_path, kind):
     assert not any(tmp_path.glob("out*")), "nothing may be written on error"
     v = pgi("validate", str(scene))
     assert v.returncode != 0 and "Traceback" not in v.stderr
+    assert len(v.stderr.strip().splitlines()) == 1 and BAD_SCENES[kind][1] in v.stderr, v.stderr
 
 
 @pytest.mark.parametrize(
@@ -656,6 +657,9 @@ def test_render_refuses_hostile_scene_files_before_looking_for_its_inputs(tmp_pa
         )
         r = pgi(command, str(tmp_path / "long.yaml"), *extra)
         assert r.returncode == 2 and r.stderr.strip().endswith("file name too long"), r.stderr
+        assert len(r.stderr.strip().splitlines()) == 1, r.stderr
+    # None of these runs wrote an image, a sidecar or a temporary file.
+    assert not [p.name for p in tmp_path.iterdir() if p.suffix in (".exr", ".json", ".tmp")]
 
 
 def test_progress_lines(monkeypatch, capsys):
@@ -858,7 +862,7 @@ def test_standard_output_that_cannot_be_written(tmp_path):
     stderr = proc.stderr.read().decode()
     assert proc.wait(timeout=120) == 141 and stderr == ""
     if not Path("/dev/full").exists():
-        return
+        pytest.skip("no /dev/full here: the full-stdout half is not run")
     with open("/dev/full", "w") as full:
         r = subprocess.run([*PGI, "methods"], stdout=full,
                            stderr=subprocess.PIPE, text=True)  # fmt: skip

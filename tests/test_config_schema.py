@@ -461,3 +461,24 @@ def test_config_text_that_yaml_11_reads_as_a_number_is_refused(tmp_path: Path) -
             check_config_files([file])
     file.write_text("scenes: [cbox]\nbudgets: [1, 90]\nseeds: [8]\nname: '010'\n")
     check_config_files([file])
+
+
+@pytest.mark.parametrize(
+    ("change", "expect"),
+    [
+        ({"set": ["method.spp_per_wave=2"]}, r"^set: method.spp_per_wave: method parameters"),
+        (
+            {"scenes": [{"name": "cbox", "set": ["method.photons=64"]}]},
+            r"^scenes: 'cbox': set: method.photons: method parameters .* use method_args",
+        ),
+    ],
+)  # fmt: skip
+def test_plan_refuses_method_parameters_in_a_scene_set(
+    tmp_path: Path, change: dict, expect: str
+) -> None:
+    """A study's or a scene's `set` reaches every method and the reference: a method parameter
+    there was reported as an unknown key of a scene file the user never touched (found by an
+    error-handling probe)."""
+    cfg = {**GOOD, "scenes_dir": str(_scenes(tmp_path)), "pgi": _fake_pgi(tmp_path), **change}
+    with pytest.raises(PlanError, match=expect):
+        make_plan(cfg, tmp_path, check_scenes=False)

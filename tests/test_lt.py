@@ -387,7 +387,7 @@ def test_lights_emit_into_their_medium(name, expected, overrides):
     assert np.all(per_triangle[first : first + len(scene.shapes[light].faces)] == want)
 
 
-def test_an_emitter_a_medium_boundary_crosses_is_refused(tmp_path):
+def test_an_emitter_a_medium_boundary_crosses_is_refused(tmp_path, capsys):
     """Light paths start in one medium per emitting triangle, found from its centroid. Ground
     fog reaching through the box's back wall, lit: the lower half of the wall emits into the
     fog, the upper half into vacuum. lt rendered it 14 % dark (one triangle 0.06 instead of
@@ -414,6 +414,9 @@ def test_an_emitter_a_medium_boundary_crosses_is_refused(tmp_path):
         out = tmp_path / f"{method}.exr"
         code = cli.main(["render", str(tmp_path), "--method", method, *lit, "-o", str(out)])
         assert code == 2 and not out.exists()
+        err = capsys.readouterr().err.strip()  # one line naming the file, no traceback
+        assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+        assert err.startswith("pgi: error:") and "box.yaml: shapes[2] (back)" in err, err
     scene = load_scene(tmp_path / "scene.yaml", ["shapes[2].emission=[1, 1, 1]"])
     native = build_native_scene(scene)
     # The wall is written in the included box.yaml, not in the scene file.

@@ -195,3 +195,17 @@ def test_pt_bounds_its_wave_paths_and_its_film(monkeypatch):
     )
     with pytest.raises(PgiError, match=r"about 14 GiB, .*: lower the film's size$"):
         PathTracing(load_small("cbox", 9000, 9000), seed=0, threads=1, params={})
+
+
+def test_a_reference_too_large_for_memory_is_refused_before_mitsuba(monkeypatch):
+    """`pgi reference` had no bound: a 16384x16384 film crashed Mitsuba (exit 139, no
+    message; an error-handling probe). It is refused before Mitsuba starts, for the film's
+    size; 4096x4096 (one sample a pass) fits on 24 GiB."""
+    import renderer.methods.params as params
+    from renderer import reference
+
+    monkeypatch.setattr(params, "physical_memory", lambda: 24 * 2**30)
+    monkeypatch.setattr(reference, "import_mitsuba", lambda: pytest.fail("Mitsuba started"))
+    reference.check_reference_fits_in_memory(load_small("cbox", 4096, 4096), 1)
+    with pytest.raises(PgiError, match=r"16384x16384 .* about 38 GiB, .*: lower the film's size$"):
+        reference.render_reference(load_small("cbox", 16384, 16384), spp=1)

@@ -118,7 +118,10 @@ def test_blocks_match_mitsuba(estimates):
     assert result.passes, f"{name}: {result}"
 
 
-def test_pixels_match_mitsuba(estimates):
+def test_no_pixel_far_from_mitsuba(estimates):
+    """Single pixels: the largest |z| only (Bonferroni over every pixel and channel), for a
+    local error the blocks average away. Their chi-square is not asserted here; the 4x4
+    blocks above assert it, on means closer to normal."""
     name, a, b = estimates
     result = agreement(a, b, ALPHA)
     assert result.z_ok, f"{name}: {result}"

@@ -438,6 +438,20 @@ def check_one_value_per_key(overrides: Sequence[str], where: str) -> tuple[str, 
     return tuple(overrides)
 
 
+def check_scene_overrides_only(overrides: Sequence[str], where: str) -> tuple[str, ...]:
+    """A study's or a scene's `set` reaches every method and the reference, so it may change
+    the scene only: a method parameter there would be reported as a key the scene does not
+    have, naming a scene file the user never touched."""
+    for kv in overrides:
+        key = str(kv).split("=", 1)[0].strip()
+        if key == "method" or key.startswith("method."):
+            raise PlanError(
+                f"{where}: {key}: method parameters cannot go in a study's or a scene's set (it "
+                "reaches every method and the reference); use method_args or a variant"
+            )
+    return tuple(overrides)
+
+
 def make_variants(
     config: dict[str, Any], avail: list[str], planned: list[str], check: bool
 ) -> dict[str, VariantSpec]:
@@ -497,7 +511,9 @@ def make_plan(
     pgi = resolve_pgi(str(config.get("pgi", "auto")))
     scenes_dir = root / config.get("scenes_dir", "scenes")
     ref = dict(config.get("reference") or {})
-    global_set = check_one_value_per_key(config.get("set") or (), "set")
+    global_set = check_scene_overrides_only(
+        check_one_value_per_key(config.get("set") or (), "set"), "set"
+    )
     # Scenes and arguments are checked here only when `pgi` is this package's own: another
     # command may read them its own way.
     check_here = check_scenes and str(config.get("pgi", "auto")) == "auto"
@@ -522,7 +538,10 @@ def make_plan(
             path=folder,
             # A scene's own `set` may override the study's for that scene.
             set=global_set
-            + check_one_value_per_key(entry.get("set") or (), f"scenes: '{name}': set"),
+            + check_scene_overrides_only(
+                check_one_value_per_key(entry.get("set") or (), f"scenes: '{name}': set"),
+                f"scenes: '{name}': set",
+            ),
             reference_spp=int(entry.get("reference_spp", default_spp)),
         )
         if check_here:
