@@ -281,12 +281,34 @@ void ray_march(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax, Sampl
     });
 }
 
-// Distance sampling. Homogeneous media use the closed form with single-sample
-// MIS over the RGB channels (the hero channel is picked uniformly); grids use
-// delta tracking against the per-cell majorant (extinction is gray there), or
-// marching for the RayMarch estimator.
+// Path-space spectral MIS for chromatic homogeneous media (Wilkie et al. 2014, "Hero
+// wavelength spectral sampling"; Pharr et al., PBRT 4th ed., sec. 14.2): the channel that
+// samples every free flight of a path (its hero) is drawn once per path, and `ratio` carries
+// each channel's pdf of the path's flights so far, relative to their mean. A flight's
+// weight is then f / mean(ratio * pdf): the path's throughput is its contribution over the
+// mean of the three channels' path pdfs (the balance heuristic over the hero), bounded by 3
+// times what a path sampled with each channel's own pdf would carry. Drawing the hero per
+// flight instead (single-sample MIS per flight) bounds each flight's weight but not their
+// product: in long walks the densest channel grew a heavy tail (docs/media.md).
+struct SpectralMis {
+    int hero = 0;
+    RGB ratio{1.0};  // channels' path pdfs over their mean (mean 1)
+    // Folds one flight's per-channel pdf in; returns the divisor of its weight (0: no channel
+    // could have sampled it).
+    double fold(const RGB &pdf) {
+        double norm = mean(ratio * pdf);
+        if (norm > 0) ratio = ratio * pdf / norm;
+        return norm;
+    }
+};
+
+// Distance sampling. Homogeneous media use the closed form; with chromatic extinction,
+// `spectral` (a path's SpectralMis) picks the channel that samples, else single-sample MIS
+// per flight over the RGB channels (the channel picked uniformly for this flight). Grids use
+// delta tracking against the per-cell majorant (extinction is gray there), or marching for
+// the RayMarch estimator.
 inline FreeFlight sample_free_flight(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax,
-                                     Sampler &rng, MediumStats &stats) {
+                                     Sampler &rng, MediumStats &stats, SpectralMis *spectral = nullptr) {
     FreeFlight f;
     if (m.type == MediumType::Homogeneous && m.gray()) {
         // Exact distance sampling: the weight is the albedo on collision, 1 on passing.
@@ -296,6 +318,22 @@ inline FreeFlight sample_free_flight(const Medium &m, const Vec3 &o, const Vec3 
             f.scattered = true;
             f.t = t;
             f.weight = m.albedo;
+        }
+        return f;
+    }
+    if (m.type == MediumType::Homogeneous && spectral) {
+        double sig = m.sigma_t[spectral->hero];
+        double t = sig > 0 ? exponential_depth(rng.next()) / sig : kInf;
+        if (t < tmax) {
+            RGB tr = beer_lambert(m.sigma_t, t);
+            double norm = spectral->fold(m.sigma_t * tr);
+            f.scattered = true;
+            f.t = t;
+            f.weight = norm > 0 ? m.sigma_t * m.albedo * tr / norm : RGB(0.0);
+        } else {
+            RGB tr = beer_lambert(m.sigma_t, tmax);
+            double norm = spectral->fold(tr);
+            f.weight = norm > 0 ? tr / norm : RGB(0.0);
         }
         return f;
     }

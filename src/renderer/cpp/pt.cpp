@@ -89,6 +89,7 @@ size_t PathTracerLane::next_rays(const RayBuffers &out) {
         const int64_t pixel = path % npix, sample = pt.iteration_ * pt.spp_per_wave_ + path / npix;
         start_camera_path(p, cam, pixel, Sampler(stream_key(pt.seed_, uint64_t(sample), uint64_t(pixel))), out,
                           kept);
+        p.spectral.hero = hero_channel(p.rng);
         active_[kept++] = s;
     }
     active_.resize(kept);
@@ -111,7 +112,8 @@ size_t PathTracerLane::shade(const Hits &hits) {
         // Medium: a real collision before the surface scatters the path there.
         if (p.medium >= 0) {
             FreeFlight ff =
-                sample_free_flight(scene.media[p.medium], segment_origin(p), p.dir, t_hit + p.lead, p.rng, stats_);
+                sample_free_flight(scene.media[p.medium], segment_origin(p), p.dir, t_hit + p.lead, p.rng, stats_,
+                                   &p.spectral);
             p.throughput *= ff.weight;
             if (ff.scattered) {
                 steps.scatter_in_medium(p, shadow, slot, segment_point(p, ff.t));
