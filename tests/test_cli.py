@@ -261,11 +261,15 @@ def test_images_that_are_not_whole_exr_files_are_refused(tmp_path):
     write_exr(tmp_path / "ref.exr", rng.uniform(size=(64, 64, 3)))
     data = (tmp_path / "ref.exr").read_bytes()
     (tmp_path / "cut.exr").write_bytes(data[: len(data) // 2])
+    (tmp_path / "header.exr").write_bytes(data[:100])  # cut inside the header
+    (tmp_path / "empty.exr").write_bytes(b"")
     import OpenImageIO as oiio
 
     oiio.ImageBuf(oiio.ImageSpec(8, 8, 3, oiio.UINT8)).write(str(tmp_path / "p.png"))
     (tmp_path / "p.png").rename(tmp_path / "png.exr")
-    for name, expected in (("cut.exr", "cannot read pixels"), ("png.exr", "found png")):
+    for name, expected in (("cut.exr", "cannot read pixels"), ("png.exr", "found png"),
+                           ("header.exr", "a corrupt or truncated OpenEXR file"),
+                           ("empty.exr", "the file is empty")):  # fmt: skip
         r = pgi("compare", str(tmp_path / name), str(tmp_path / "ref.exr"))
         assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
         assert f"pgi: error: {tmp_path / name}: " in r.stderr and expected in r.stderr

@@ -76,7 +76,8 @@ def test_bad_config_rejected(change: dict, expect: str) -> None:
         ({"budgets": ["5e-1"]}, "write 0.5)"),
         (
             {"budgets": ["1"]},
-            "budgets[0]: '1' is not of type 'number' (it is quoted: write 1 without",
+            "budgets[0]: '1' is not of type 'number' (it is text: in a config file write 1 "
+            "without quotes; snakemake's --config reads list items as text",
         ),
         ({"budget": [1]}, "top level: Additional properties are not allowed ('budget' was"),
     ],

@@ -462,6 +462,10 @@ def test_values_beyond_float32_and_size_limits_are_errors(tmp_path):
     path = write(tmp_path, BASE)
     expect_error(path, "shapes[1].emission", "<= 1e\\+30", ["shapes[1].emission=1.0e+39"])
     expect_error(path, "shapes[0].transform", "beyond", ["shapes[0].transform=[{scale: 1.0e+300}]"])
+    # A mesh file's own coordinates are the file's fault, not the transform's (it has none).
+    (tmp_path / "far.obj").write_text("v 1e20 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\n")
+    doc = edit(shapes=[*BASE["shapes"], {"type": "mesh", "file": "far.obj", "material": "white"}])
+    expect_error(write(tmp_path, doc, "far.yaml"), "shapes[2].file", "far.obj: .* reach 1e\\+20")
     expect_error(path, "film.width", "<= 16384", ["film.width=100000"])
     d = np.full((2, 2, 2), 1e39)  # finite in float64, inf in float32
     expect_error(grid_scene(tmp_path, d), "media.smoke.density", "<= 1e\\+30")
@@ -830,6 +834,10 @@ def test_a_truncated_vdb_is_a_short_error(tmp_path):
     doc = edit(media={"fog": {"type": "grid", "density": "t.vdb", "albedo": 0.5}})
     msg = expect_error(write(tmp_path, doc), "media.fog.density", "cannot read as an OpenVDB")
     assert len(msg) < 400
+    # OpenVDB's own words ("Map is not registered") did not say the file is damaged
+    for size, why in [(100, "corrupt or truncated"), (0, "the file is empty")]:
+        (tmp_path / "t.vdb").write_bytes((SCENES / "smoke" / "plume.vdb").read_bytes()[:size])
+        expect_error(write(tmp_path, doc), "media.fog.density", f"OpenVDB file: {why}")
 
 
 @pytest.mark.parametrize(("key", "text"), [("camera.fov", "1:20"), ("film.width", "0100")])

@@ -104,7 +104,12 @@ def number_as_text_hint(value: Any, expected: Any = "number") -> str:
     except yaml.YAMLError:
         quoted = False
     if quoted:
-        return f" (it is quoted: write {number!r} without quotes)"
+        # Quoted in a file, or a list item given with snakemake's --config, which reads them
+        # all as text: the remedy differs, so both are said.
+        return (
+            f" (it is text: in a config file write {number!r} without quotes; snakemake's "
+            "--config reads list items as text, so give lists in a config file)"
+        )
     return (
         f" (the workflow reads configs as YAML 1.1, where {value} is text, not a number: "
         f"write {number!r})"

@@ -37,6 +37,12 @@ def read_exr_and_channels(path: str | Path) -> tuple[np.ndarray, int]:
         exr = not unreadable and buf.file_format_name == "openexr"
         pixels = buf.get_pixels(oiio.FLOAT) if exr else None
     if unreadable:
+        with open(path, "rb") as f:  # an EXR's magic number: OpenImageIO's words do not say so
+            head = f.read(4)
+        if not head:
+            raise PgiError(f"{path}: cannot read image: the file is empty")
+        if head == b"\x76\x2f\x31\x01":
+            raise PgiError(f"{path}: cannot read image: a corrupt or truncated OpenEXR file")
         raise PgiError(f"{path}: cannot read image: {unreadable}")
     if not exr:  # metrics are defined on linear HDR values
         raise PgiError(f"{path}: expected an OpenEXR image, found {buf.file_format_name or '?'}")

@@ -101,8 +101,11 @@ def read_vdb(
     except Exception as e:  # MemoryError, or OpenVDB's own (sometimes empty) message
         if isinstance(e, MemoryError):
             why = f"corrupt or truncated (reading it took over {extra / 2**30:.1f} GiB)"
-        else:
-            why = one_line(str(e)).strip("'\" ") or "corrupt or truncated"
+        elif Path(path).stat().st_size == 0:
+            why = "the file is empty"
+        else:  # OpenVDB's words ("Map is not registered") do not say the file is damaged
+            said = one_line(str(e)).strip("'\" ")
+            why = f"corrupt or truncated ({said})" if said else "corrupt or truncated"
         raise PgiError(f"{path}: cannot read as an OpenVDB file: {why}") from None
     if grid.valueTypeName != "float":
         raise PgiError(f"{path}: grid {grid_name!r} holds {grid.valueTypeName}, expected float")

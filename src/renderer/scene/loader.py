@@ -971,6 +971,12 @@ def _shape(val: _Validator, i: int, d: Any, materials: dict, media: dict) -> Sha
         )
     else:
         v, f = _mesh_file(val, d["file"], p + ("file",))
+        if not np.all(np.abs(v) < MAX_COORDINATE):  # the file's own, before any transform
+            val.fail(
+                p + ("file",),
+                f"{d['file']}: vertex coordinates reach {np.abs(v).max():g}, beyond "
+                f"+-{MAX_COORDINATE:g}",
+            )
     m = val.transform(d.get("transform", []), p + ("transform",))
     with np.errstate(over="ignore", invalid="ignore"):
         v = xf.apply_points(m, v)
