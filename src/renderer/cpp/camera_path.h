@@ -28,14 +28,10 @@ struct CameraPath {
     bool prev_delta = true;
     bool alive = false;
     Sampler rng;
-    SpectralMis spectral;  // hero channel and path pdf ratios in chromatic media (pt)
+    SpectralMis spectral;  // hero channel and path pdf ratios in chromatic media (pt, ppb)
 };
 
-// A path's hero channel, drawn from a child of its stream: drawing it uses up no dimension of
-// the path's own (scenes without chromatic media keep their images).
-inline int hero_channel(const Sampler &path_rng) {
-    return std::min(2, int(path_rng.split(0x4865726f00000000ull).next() * 3));
-}
+
 
 // Box-filtered camera sample through `pixel`, writing its first ray to slot k.
 template <typename Path>

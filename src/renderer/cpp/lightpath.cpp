@@ -56,6 +56,7 @@ size_t LightPathTracer::begin_iteration(int64_t iteration, const RayBuffers &out
         LightPathState &p = paths_[i];
         p = LightPathState();
         p.rng = Sampler(stream_key(seed_ ^ kLightStreamTag, uint64_t(iteration), uint64_t(i)));
+        p.spectral.hero = hero_channel(p.rng);
         emit(p, size_t(i), i);
     }
     paths_traced_ += n;
@@ -172,8 +173,10 @@ void LightPathTracer::scatter(const Hits &hits) {
         double t_hit = tri >= 0 ? double(hits.tfar[k]) : kInf;
         if (p.medium >= 0) {
             MediumStats local;
-            FreeFlight ff =
-                sample_free_flight(scene.media[p.medium], segment_origin(p), p.dir, t_hit + p.lead, p.rng, local);
+            // The segment's record takes the ratios before this flight folds its pdf in.
+            const RGB ratio_at_origin = p.spectral.ratio;
+            FreeFlight ff = sample_free_flight(scene.media[p.medium], segment_origin(p), p.dir, t_hit + p.lead,
+                                               p.rng, local, p.spectral);
             lookups += local.density_lookups;
             // A point on this segment scatters into a vertex of depth p.depth + 1.
             if (record_segments_ && in_range(p.depth + 1)) {
@@ -183,6 +186,7 @@ void LightPathTracer::scatter(const Hits &hits) {
                 s.length = ff.scattered ? ff.t : t_hit + p.lead;
                 s.t_surface = t_hit + p.lead;
                 s.power = p.power;
+                s.spectral_ratio = ratio_at_origin;
                 s.path = active_[k];
                 s.medium = p.medium;
                 s.depth = int16_t(p.depth);

@@ -40,7 +40,9 @@
 //     segment is pdf(t) = sigma_t Tr(t) (grid: delta tracking, gray) or
 //     mean_c(sigma_t,c Tr_c(t)) (homogeneous, hero channel): a "short beam" of
 //     flux at distance s < length is power * Tr(s) / P(t > s), with
-//     P(t > s) = mean_c Tr_c(s) (homogeneous) or Tr(s) (grid); a "long beam" up to
+//     P(t > s) = mean_c(spectral_ratio_c Tr_c(s)) (homogeneous: the path's hero channel
+//     samples every flight, medium.h SpectralMis; the ratio is the segment's) or Tr(s)
+//     (grid); a "long beam" up to
 //     t_surface uses power * Tr(s) and must ignore the sampled collision.
 // Depth (Mitsuba's max_depth): a vertex's `depth` counts the real scattering
 // events of the light path up to and including it (emission: 0, first hit: 1).
@@ -79,6 +81,7 @@ struct LightSegment {
     double length = 0;       // to the sampled collision, or t_surface when none was sampled
     double t_surface = 0;    // to the next surface along dir (kInf when the ray escapes)
     RGB power{0.0};          // flux weight at the origin, before this segment's transmittance
+    RGB spectral_ratio{1.0}; // the path's channel pdf ratios at the origin (SpectralMis)
     int32_t path = 0;
     int32_t medium = -1;
     int16_t depth = 0;       // real scattering events before the origin
@@ -96,6 +99,7 @@ struct LightPathState {
     bool after_specular = false;
     bool alive = false;
     Sampler rng;
+    SpectralMis spectral;  // hero channel and path pdf ratios in chromatic media
 };
 
 class LightPathTracer {

@@ -302,13 +302,18 @@ struct SpectralMis {
     }
 };
 
-// Distance sampling. Homogeneous media use the closed form; with chromatic extinction,
-// `spectral` (a path's SpectralMis) picks the channel that samples, else single-sample MIS
-// per flight over the RGB channels (the channel picked uniformly for this flight). Grids use
-// delta tracking against the per-cell majorant (extinction is gray there), or marching for
-// the RayMarch estimator.
+// A path's hero channel, drawn from a child of its stream: drawing it uses up no dimension of
+// the path's own (scenes without chromatic media keep their images).
+inline int hero_channel(const Sampler &path_rng) {
+    return std::min(2, int(path_rng.split(0x4865726f00000000ull).next() * 3));
+}
+
+// Distance sampling. Homogeneous media use the closed form; with chromatic extinction the
+// path's SpectralMis picks the channel that samples and carries the pdf ratios (for a path's
+// first flight this is single-sample MIS over the channels). Grids use delta tracking against
+// the per-cell majorant (extinction is gray there), or marching for the RayMarch estimator.
 inline FreeFlight sample_free_flight(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax,
-                                     Sampler &rng, MediumStats &stats, SpectralMis *spectral = nullptr) {
+                                     Sampler &rng, MediumStats &stats, SpectralMis &spectral) {
     FreeFlight f;
     if (m.type == MediumType::Homogeneous && m.gray()) {
         // Exact distance sampling: the weight is the albedo on collision, 1 on passing.
@@ -321,37 +326,19 @@ inline FreeFlight sample_free_flight(const Medium &m, const Vec3 &o, const Vec3 
         }
         return f;
     }
-    if (m.type == MediumType::Homogeneous && spectral) {
-        double sig = m.sigma_t[spectral->hero];
+    if (m.type == MediumType::Homogeneous) {
+        double sig = m.sigma_t[spectral.hero];
         double t = sig > 0 ? exponential_depth(rng.next()) / sig : kInf;
         if (t < tmax) {
             RGB tr = beer_lambert(m.sigma_t, t);
-            double norm = spectral->fold(m.sigma_t * tr);
+            double norm = spectral.fold(m.sigma_t * tr);
             f.scattered = true;
             f.t = t;
             f.weight = norm > 0 ? m.sigma_t * m.albedo * tr / norm : RGB(0.0);
         } else {
             RGB tr = beer_lambert(m.sigma_t, tmax);
-            double norm = spectral->fold(tr);
+            double norm = spectral.fold(tr);
             f.weight = norm > 0 ? tr / norm : RGB(0.0);
-        }
-        return f;
-    }
-    if (m.type == MediumType::Homogeneous) {
-        double uc = rng.next(), ut = rng.next();
-        int channel = std::min(2, int(uc * 3));
-        double sig = m.sigma_t[channel];
-        double t = sig > 0 ? exponential_depth(ut) / sig : kInf;
-        if (t < tmax) {
-            RGB tr = beer_lambert(m.sigma_t, t);
-            double pdf = mean(m.sigma_t * tr);
-            f.scattered = true;
-            f.t = t;
-            f.weight = m.sigma_t * m.albedo * tr / pdf;
-        } else {
-            RGB tr = beer_lambert(m.sigma_t, tmax);
-            double pdf = mean(tr);
-            f.weight = pdf > 0 ? tr / pdf : RGB(0.0);
         }
         return f;
     }

@@ -150,7 +150,8 @@ static void add_scene(nb::module_ &m) {
                  Vec3 o = vec(origin), d = normalize(vec(direction));
                  for (int64_t i = 0; i < n; ++i) {
                      Sampler rng(stream_key(seed, uint64_t(i), 0x6666));
-                     FreeFlight f = sample_free_flight(s.media.at(medium), o, d, tmax, rng, st);
+                     SpectralMis spectral{hero_channel(rng)};  // a path's first flight
+                     FreeFlight f = sample_free_flight(s.media.at(medium), o, d, tmax, rng, st, spectral);
                      t[i] = f.scattered ? f.t : kInf;
                      w[3 * i] = f.weight.x; w[3 * i + 1] = f.weight.y; w[3 * i + 2] = f.weight.z;
                  }

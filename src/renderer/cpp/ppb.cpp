@@ -48,6 +48,7 @@ void PhotonBeams::build_beams(const LightPathTracer &light, int64_t iteration, d
         b.dir = s.dir;
         b.length = std::min(s.length, s.t_surface);
         b.power = s.power;
+        b.spectral_ratio = s.spectral_ratio;
         b.medium = s.medium;
         b.depth = s.depth;
         beams.push_back(b);
@@ -63,8 +64,10 @@ size_t PhotonBeams::begin_wave(int64_t iteration, const RayBuffers &out) {
     shadow_.clear();
     if (max_depth_ == 0) return 0;  // Mitsuba: max_depth 0 renders black
     // A stream key distinct from the light paths' (which use (seed, iteration, path)).
-    return start_camera_wave(paths_, active_, cam, iteration, spp_per_iteration_, seed_ ^ 0x5bd1e995b5ull, out,
-                             threads_);
+    size_t n = start_camera_wave(paths_, active_, cam, iteration, spp_per_iteration_, seed_ ^ 0x5bd1e995b5ull,
+                                 out, threads_);
+    for (BeamGatherPath &p : paths_) p.spectral.hero = hero_channel(p.rng);  // as pt's paths
+    return n;
 }
 
 // BB1D over the camera segment [0, t_end) of path p in its medium.
@@ -85,9 +88,9 @@ RGB PhotonBeams::gather(BeamGatherPath &p, double t_end, MediumStats &local, uin
         RGB weight;
         if (homogeneous) {
             // Camera transmittance in closed form; the short beam's Tr(s) / P(t > s)
-            // with the hero-channel free-flight pdf of the light tracer.
+            // with the light path's hero-channel pdf (lightpath.h).
             RGB beam_tr = beer_lambert(m.sigma_t, h.t_beam);
-            double survival = mean(beam_tr);
+            double survival = mean(b.spectral_ratio * beam_tr);
             if (!(survival > 0)) return;
             weight = beer_lambert(m.sigma_t, h.t_ray) * m.sigma_t * m.albedo * beam_tr / survival;
         } else {
@@ -119,7 +122,8 @@ size_t PhotonBeams::shade(const Hits &hits) {
             const Medium &m = scene.media[p.medium];
             if (!p.gathering) {
                 // After a diffuse surface: path tracing, medium scattering included (as pt).
-                FreeFlight ff = sample_free_flight(m, segment_origin(p), p.dir, t_hit + p.lead, p.rng, local);
+                FreeFlight ff =
+                    sample_free_flight(m, segment_origin(p), p.dir, t_hit + p.lead, p.rng, local, p.spectral);
                 lookups += local.density_lookups;
                 p.throughput *= ff.weight;
                 if (ff.scattered) {
@@ -133,7 +137,8 @@ size_t PhotonBeams::shade(const Hits &hits) {
             } else {
                 // Short query ray: a delta-tracked distance bounds the gather, and a
                 // collision before the surface ends the camera path (beams covered it).
-                FreeFlight ff = sample_free_flight(m, segment_origin(p), p.dir, t_hit + p.lead, p.rng, local);
+                FreeFlight ff = sample_free_flight(m, segment_origin(p), p.dir, t_hit + p.lead, p.rng, local,
+                                                   p.spectral);  // a grid: gray, the ratios stay
                 double t_end = ff.scattered ? ff.t : t_hit + p.lead;
                 p.radiance += p.throughput * gather(p, t_end, local, pairs);
                 if (ff.scattered) p.alive = false;

@@ -113,7 +113,7 @@ size_t PathTracerLane::shade(const Hits &hits) {
         if (p.medium >= 0) {
             FreeFlight ff =
                 sample_free_flight(scene.media[p.medium], segment_origin(p), p.dir, t_hit + p.lead, p.rng, stats_,
-                                   &p.spectral);
+                                   p.spectral);
             p.throughput *= ff.weight;
             if (ff.scattered) {
                 steps.scatter_in_medium(p, shadow, slot, segment_point(p, ff.t));
