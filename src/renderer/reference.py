@@ -38,19 +38,15 @@ def spp_per_pass(scene: Scene, spp: int) -> int:
 
 def check_reference_fits_in_memory(scene: Scene, spp: int) -> None:
     """Refuse a reference whose passes would take over half the machine's memory (Mitsuba's
-    LLVM variant traces a pass's samples as one wavefront; Linux grants such allocations and
-    then kills the process, or Mitsuba crashes, with no message)."""
-    from renderer.methods.params import MITSUBA_SAMPLE_BYTES, physical_memory
+    LLVM variant traces a pass's samples as one wavefront: 16384x16384 crashed it)."""
+    from renderer.methods.params import MITSUBA_SAMPLE_BYTES, over_half_memory
 
     pixels = scene.film.width * scene.film.height
     per_pass = spp_per_pass(scene, spp)
-    needed = pixels * (per_pass * MITSUBA_SAMPLE_BYTES + 24)  # and the float64 sum
-    total = physical_memory()
-    if total and needed > total // 2:
+    if too_much := over_half_memory(pixels * (per_pass * MITSUBA_SAMPLE_BYTES + 24)):  # + sum
         raise PgiError(
             f"{scene.path}: a reference of {scene.film.width}x{scene.film.height} pixels at "
-            f"{per_pass} spp a pass needs about {needed / 2**30:.0f} GiB, more than half this "
-            f"machine's {total / 2**30:.0f} GiB: lower the film's size"
+            f"{per_pass} spp a pass needs {too_much}: lower the film's size"
         )
 
 

@@ -1,12 +1,13 @@
 // Camera paths: the state and the steps shared by every method that traces
 // from the camera (pt's lanes, and the gathering paths of ppb; ppb and pm also
-// use the whole-wave bookkeeping below: start_camera_wave, write_alive_rays). Each step is one piece of volumetric path tracing with NEE
-// and MIS (Veach 1997, ch. 9), with Mitsuba volpath's conventions: depth
+// use the whole-wave bookkeeping below: start_camera_wave, write_alive_rays).
+// Each step is one piece of volumetric path tracing with NEE and MIS (Veach 1997, ch. 9), with Mitsuba volpath's conventions: depth
 // counts real scattering events, null crossings are free, Russian roulette
 // after rr_depth events on max(throughput) * eta^2.
 #pragma once
 
 #include <climits>
+#include <type_traits>
 #include <vector>
 
 #include "wavefront.h"
@@ -28,10 +29,15 @@ struct CameraPath {
     bool prev_delta = true;
     bool alive = false;
     Sampler rng;
-    SpectralMis spectral;  // hero channel and path pdf ratios in chromatic media (pt, ppb)
+    SpectralMis spectral;  // hero channel and path pdf ratios in chromatic media
 };
 
-
+// Paths that sample free flights carry a SpectralMis (CameraPath's); pm's gathering paths,
+// which take transmittance in closed form, do not.
+template <typename Path, typename = void>
+struct samples_free_flights : std::false_type {};
+template <typename Path>
+struct samples_free_flights<Path, std::void_t<decltype(std::declval<Path &>().spectral)>> : std::true_type {};
 
 // Box-filtered camera sample through `pixel`, writing its first ray to slot k.
 template <typename Path>
@@ -42,6 +48,7 @@ void start_camera_path(Path &p, const Camera &cam, int64_t pixel, Sampler rng, c
     static const Path fresh{};
     p = fresh;
     p.rng = rng;
+    if constexpr (samples_free_flights<Path>::value) p.spectral.hero = hero_channel(rng);
     p.pixel = pixel;
     double fx = double(pixel % cam.width) + p.rng.next();
     double fy = double(pixel / cam.width) + p.rng.next();

@@ -64,10 +64,8 @@ size_t PhotonBeams::begin_wave(int64_t iteration, const RayBuffers &out) {
     shadow_.clear();
     if (max_depth_ == 0) return 0;  // Mitsuba: max_depth 0 renders black
     // A stream key distinct from the light paths' (which use (seed, iteration, path)).
-    size_t n = start_camera_wave(paths_, active_, cam, iteration, spp_per_iteration_, seed_ ^ 0x5bd1e995b5ull,
-                                 out, threads_);
-    for (BeamGatherPath &p : paths_) p.spectral.hero = hero_channel(p.rng);  // as pt's paths
-    return n;
+    return start_camera_wave(paths_, active_, cam, iteration, spp_per_iteration_, seed_ ^ 0x5bd1e995b5ull, out,
+                             threads_);
 }
 
 // BB1D over the camera segment [0, t_end) of path p in its medium.

@@ -89,7 +89,6 @@ size_t PathTracerLane::next_rays(const RayBuffers &out) {
         const int64_t pixel = path % npix, sample = pt.iteration_ * pt.spp_per_wave_ + path / npix;
         start_camera_path(p, cam, pixel, Sampler(stream_key(pt.seed_, uint64_t(sample), uint64_t(pixel))), out,
                           kept);
-        p.spectral.hero = hero_channel(p.rng);
         active_[kept++] = s;
     }
     active_.resize(kept);

@@ -35,6 +35,16 @@ def physical_memory() -> int:
         return 0
 
 
+def over_half_memory(needed: int) -> str:
+    """'' if `needed` bytes fit in half this machine's memory, else what to say of them
+    ("about N GiB, more than half this machine's M GiB"): Linux grants larger allocations
+    and then kills the process, or a library crashes, with no message."""
+    total = physical_memory()
+    if not total or needed <= total // 2:
+        return ""
+    return f"about {needed / 2**30:.0f} GiB, more than half this machine's {total / 2**30:.0f} GiB"
+
+
 # Radii below this fraction of the scene's bounding-sphere radius find no photon, and at
 # ~1e-150 of it 1 / (pi r^2) overflows into non-finite samples.
 MIN_RADIUS_FRACTION = 1e-9
@@ -117,13 +127,10 @@ class MethodParams:
         """Refuse a batch of paths whose state (with `extra_bytes` besides) would take over
         half the machine's memory: Linux grants such allocations and then kills the process,
         with no message. The message says to lower `remedy` (default: the parameter `key`)."""
-        total = physical_memory()
-        needed = paths * path_bytes + extra_bytes
-        if total and needed > total // 2:
+        if too_much := over_half_memory(paths * path_bytes + extra_bytes):
             raise PgiError(
-                f"method {self.method}: {key} gives batches of {paths:,} {what}, about "
-                f"{needed / 2**30:.0f} GiB, more than half this machine's "
-                f"{total / 2**30:.0f} GiB: lower {remedy or f'method.{key}'}"
+                f"method {self.method}: {key} gives batches of {paths:,} {what}, {too_much}: "
+                f"lower {remedy or f'method.{key}'}"
             )
 
     def camera_paths_fit_in_memory(

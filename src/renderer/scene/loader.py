@@ -662,11 +662,11 @@ def _phase(val: _Validator, d: Any, p: KeyPath) -> Phase:
             values = np.asarray(values, np.float64).ravel()
             if not np.all(np.isfinite(values)) or np.any(values < 0):
                 val.fail(p + ("file",), f"{file}: values must be finite and >= 0")
-            if len(values) < 2:
-                val.fail(p + ("file",), f"{file}: a tabulated phase function needs >= 2 "
-                                        f"values, got {len(values)}")  # fmt: skip
         if len(values) < 2 or not values.max() > 0:
-            val.fail(p, "a tabulated phase function needs >= 2 values, not all 0")
+            why = f"a tabulated phase function needs >= 2 values, not all 0, got {len(values)}"
+            if "file" in d:  # the file's fault: named, with its key
+                val.fail(p + ("file",), f"{file}: {why}")
+            val.fail(p, why)
         # Only the shape matters (both renderers normalise); scaled to a peak of 1 it sums
         # without overflow and survives Mitsuba's float32.
         return Phase("tabulated", values=values / values.max())
