@@ -569,6 +569,19 @@ def test_a_broken_included_section_is_not_hidden(tmp_path):
         load_scene(write(tmp_path, doc))
 
 
+def test_a_name_that_is_not_text_is_blamed_on_its_own_file(tmp_path):
+    """A material named 1 in the including file: the message names that file, not the
+    included one whose materials the merge started from."""
+    base = yaml.safe_load(yaml.safe_dump(BASE))
+    del base["name"], base["description"]
+    write(tmp_path, base, "common.yaml")
+    path = write(tmp_path, "include: common.yaml\nmaterials:\n  1: {type: diffuse}\n")
+    with pytest.raises(
+        PgiError, match=rf"^{re.escape(str(path))}: materials\.1: expected a name \(string\)"
+    ):
+        load_scene(path)
+
+
 def test_lights_that_emit_nothing_do_not_count(tmp_path):
     path = write(tmp_path, BASE)
     expect_error(path, "lights", "no light that emits", ["shapes[1].emission=0"])

@@ -288,6 +288,27 @@ def test_scene_errors_name_the_key(override, message):
         load_scene("fog-step", [override])
 
 
+def test_vdb_grid_name_must_be_unique(tmp_path):
+    """Two grids of one name: OpenVDB would read the first without a word; refused instead."""
+    import pyopenvdb as vdb
+
+    from renderer.errors import PgiError
+
+    grids = []
+    for value in (1.0, 2.0):
+        g = vdb.FloatGrid()
+        g.copyFromArray(np.full((2, 2, 2), value, np.float32))
+        g.name = "density"
+        grids.append(g)
+    file = tmp_path / "twice.vdb"
+    vdb.write(str(file), grids=grids)
+    with pytest.raises(PgiError, match=f"{re.escape(str(file))}: 2 grids are named 'density'"):
+        read_vdb(file, "density")
+    grids[1].name = "other"  # unique again: read
+    vdb.write(str(file), grids=grids)
+    assert read_vdb(file, "density")[0].max() == 1.0
+
+
 def test_vdb_grid_name_is_checked(tmp_path):
     from renderer.errors import PgiError
 

@@ -95,6 +95,11 @@ def read_vdb(
             names = [m["name"] for m in vdb.readAllGridMetadata(str(path))]
             if grid_name not in names:
                 raise PgiError(f"{path}: no grid named {grid_name!r} (grids: {', '.join(names)})")
+            if names.count(grid_name) > 1:  # OpenVDB would read the first one without a word
+                raise PgiError(
+                    f"{path}: {names.count(grid_name)} grids are named {grid_name!r}; "
+                    "rename them so that the one to render is unique"
+                )
             grid = vdb.read(str(path), grid_name)
     except PgiError:
         raise

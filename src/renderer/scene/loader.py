@@ -326,6 +326,11 @@ def _merge_includes(main: Path, doc: dict, origins: _Origins) -> dict:
                 raise PgiError(f"{file}: {key}: expected a list, got {_describe(value)}")
             if value is None and key in ("materials", "media"):  # empty: adds nothing
                 value = {}
+            for name in value if key in ("materials", "media") else ():
+                if not isinstance(name, str):  # named here: the merge loses whose name it was
+                    raise PgiError(
+                        f"{file}: {key}.{name}: expected a name (string), got {_describe(name)}"
+                    )
             if value is None and key in ("shapes", "lights"):
                 value = []
             target = merged.get(key)
