@@ -336,9 +336,27 @@ def test_area_light_is_one_sided(tmp_path, renderer):
         return pt_image(scene, 4) if renderer == "pt" else lt_image(scene, 1 << 14)
 
     front, back = render(True), render(False)
-    # lt's estimate of the lamp is noisy: its pixels are near 1, not exactly 1
-    assert front.max() == pytest.approx(1.0, rel=0.2 if renderer == "lt" else 1e-6)
     assert back.max() == 0
+    if renderer != "lt":
+        assert front.max() == pytest.approx(1.0, rel=1e-6)
+        return
+    # lt's pixels are noisy estimates of 1: over the pixels the lamp covers whole (exactly 1
+    # in pt's image), independent iterations average to 1 within their standard error
+    from renderer.methods.lt import LightTracing
+    from stats import mean_and_se, t_p_value
+
+    scene = load_scene(single_light_scene(tmp_path, [0, 0, 0]))
+    covered = pt_image(scene, 4)[..., 0] == 1.0
+    assert covered.any()
+    lt = LightTracing(scene, seed=1, threads=1, params={"light_paths": 1 << 14})
+    means = []
+    for i in range(8):
+        before = lt.image() * i
+        lt.run_iteration(i)
+        means.append((lt.image() * (i + 1) - before)[covered, 0].mean())  # iteration i alone
+    mean, se = mean_and_se(np.array(means))
+    assert t_p_value(mean, 1.0, se, 7) > 1e-4, means
+    assert t_p_value(0.95 * mean, 1.0, se, 7) < 1e-4, f"too few light paths to see 5 %: {means}"
 
 
 @pytest.mark.parametrize(
