@@ -326,11 +326,6 @@ def _merge_includes(main: Path, doc: dict, origins: _Origins) -> dict:
                 raise PgiError(f"{file}: {key}: expected a list, got {_describe(value)}")
             if value is None and key in ("materials", "media"):  # empty: adds nothing
                 value = {}
-            for name in value if key in ("materials", "media") else ():
-                if not isinstance(name, str):  # named here: the merge loses whose name it was
-                    raise PgiError(
-                        f"{file}: {key}.{name}: expected a name (string), got {_describe(name)}"
-                    )
             if value is None and key in ("shapes", "lights"):
                 value = []
             target = merged.get(key)
@@ -343,7 +338,8 @@ def _merge_includes(main: Path, doc: dict, origins: _Origins) -> dict:
                     if name in target:
                         raise PgiError(f"{file}: {key}.{name}: already defined in an included file")
                     target[name] = item
-                    origins.add((key, name), file, (key, name))
+                    # as text, as key paths name a table's entries (a YAML 1 included)
+                    origins.add((key, str(name)), file, (key, str(name)))
             elif (
                 key in ("shapes", "lights") and isinstance(value, list) and isinstance(target, list)
             ):
