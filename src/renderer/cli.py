@@ -382,9 +382,10 @@ class Terminated(KeyboardInterrupt):
     that it cleans up as after Ctrl-C: temporary files go, finished snapshots stay."""
 
 
-# Set by the SIGTERM handler. Its exception can be lost: raised where C code runs a little
-# Python and then clears errors, it vanishes, and the next native pass that sees the signal
-# raises a plain KeyboardInterrupt (about one SIGTERM in 30 under load, in pt's lanes).
+# Set by the SIGTERM handler, whose exception can be lost on its way: under load, about one
+# SIGTERM in 30 to pt's two lanes ran the handler and then ended the render with the plain
+# KeyboardInterrupt of the next native pass that saw the signal (where it vanished is not
+# known; nothing of ours catches it).
 _sigterm_arrived = threading.Event()
 
 
