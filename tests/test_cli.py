@@ -819,7 +819,7 @@ def test_sigterm_mid_render_cleans_up_as_ctrl_c_does(tmp_path, threads):
 
 
 def test_sigterm_whose_exception_was_lost_still_ends_as_terminated(capsys):
-    """The SIGTERM handler's exception can vanish in C code that clears errors; the plain
+    """The SIGTERM handler's exception can be lost on its way (where is not known); the plain
     KeyboardInterrupt a native pass raises next must still end as SIGTERM does (143), not as
     Ctrl-C (130): one run in 30 of the test above did, under load."""
     import signal
@@ -832,7 +832,7 @@ def test_sigterm_whose_exception_was_lost_still_ends_as_terminated(capsys):
         try:
             cli._terminate(signal.SIGTERM, None)
         except cli.Terminated:
-            pass  # dropped, as that C code does
+            pass  # dropped, as happened under load
         assert cli._interrupted(KeyboardInterrupt()) == 143
         assert capsys.readouterr().err.splitlines()[-1] == "pgi: terminated"
     finally:
