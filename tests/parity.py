@@ -207,6 +207,15 @@ def agreement(a: Estimate, b: Estimate, alpha: float = ALPHA) -> Agreement:
     return Agreement(chi2, chi2_dof, p_value, max_abs_z, z_limit, worst, deviation, alpha)
 
 
+def losses(fraction: float, channels: int = 3) -> list[np.ndarray]:
+    """Per-channel scales for the controls of an agreement check: ``fraction`` less and more
+    light in every channel, then less in each channel alone (a colour shift)."""
+    scales = [np.full(channels, 1 - fraction), np.full(channels, 1 + fraction)]
+    for c in range(channels):
+        scales.append(np.where(np.arange(channels) == c, 1 - fraction, 1.0))
+    return scales
+
+
 def same_image(a: Estimate, b: Estimate, alpha: float, block: int = 3) -> tuple[bool, str]:
     """Two renders of one image: block means and the image mean agree (chi-square and largest
     |z| at ``alpha``), and why, for the assertion message."""

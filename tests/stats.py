@@ -307,3 +307,43 @@ def mean_and_se(x: np.ndarray, axis: int = 0) -> tuple[np.ndarray, np.ndarray]:
     x = np.asarray(x, np.float64)
     n = x.shape[axis]
     return x.mean(axis=axis), x.std(axis=axis, ddof=1) / np.sqrt(n)
+
+
+@dataclass(frozen=True)
+class SlopeFit:
+    """Log-log slope of the mean of several independent error curves, with its jackknife
+    standard error over the curves (leave one run out) and Student's t on n - 1 degrees."""
+
+    slope: float
+    stderr: float
+    runs: int
+
+    def interval(self, alpha: float) -> tuple[float, float]:
+        half = float(sps.t.isf(alpha / 2, self.runs - 1)) * self.stderr
+        return self.slope - half, self.slope + half
+
+    def consistent_with(self, lo: float, hi: float, alpha: float) -> bool:
+        """Whether the two-sided ``1 - alpha`` interval meets the range [lo, hi]."""
+        low, high = self.interval(alpha)
+        return high >= lo and low <= hi
+
+    def __str__(self) -> str:
+        return f"slope {self.slope:.3f} +- {self.stderr:.3f} (jackknife over {self.runs} runs)"
+
+
+def loglog_slope(curves: np.ndarray, budgets) -> SlopeFit:
+    """Fit log(mean error) against log(budget); ``curves`` is runs x budgets, each run
+    independent (its own seed). Errors at or below zero (a subtracted noise floor that the
+    estimate undershot) are clipped to a tiny positive value."""
+    curves = np.asarray(curves, np.float64)
+    n = len(curves)
+    if n < 3:
+        raise ValueError("a jackknife standard error needs at least 3 runs")
+    x = np.log(np.asarray(budgets, np.float64))
+
+    def fit(c: np.ndarray) -> float:
+        return float(np.polyfit(x, np.log(np.maximum(c.mean(axis=0), 1e-30)), 1)[0])
+
+    leave_one_out = np.array([fit(np.delete(curves, i, axis=0)) for i in range(n)])
+    stderr = float(np.sqrt((n - 1) / n * ((leave_one_out - leave_one_out.mean()) ** 2).sum()))
+    return SlopeFit(fit(curves), stderr, n)

@@ -3,34 +3,41 @@
 Error is measured on cbox-fog (surfaces and media; 8x8 film, pixels that see the
 light left out, see test_pm.py) against a pt reference, the reference's own
 variance subtracted. Each sppm run is a sequence of budgets n = 1, 2, 4, ..., 64
-iterations; three seeds are averaged.
+iterations; SEEDS independent runs are averaged.
 
 Expected slope of log MSE against log n: with alpha = 2/3 and 2D kernels (surface
 discs and the beam radiance estimate), variance from photon density falls as n^-alpha
 and squared bias as n^(4 (alpha - 1) / 2): both n^(-2/3). Camera sampling adds an
 unbiased term falling as 1/n, so before the asymptotic regime the slope lies between
--1 and -2/3 (measured: -0.80 to -0.83 per seed). The band [-1.1, -0.55] is that range
-widened by 0.1 for the scatter of a fit over 7 correlated budgets. At these budgets the
-bias of sppm's starting radius is still below the noise (pm with that radius fixed also
-fits about -0.87), so the slope alone cannot tell a shrinking radius from a fixed one:
+-1 and -2/3 (THEORY). The fitted slope of the seeds' mean curve must be consistent with
+that range: its two-sided interval at stats.ALPHA, from the jackknife over seeds and
+Student's t, must meet it (measured per seed: -0.74 to -1.27, so one seed's fit alone says
+little; over 12 seeds about -0.9 +- 0.05). At these budgets the bias of sppm's starting
+radius is still below the noise (pm with that radius fixed also fits about -0.87), so the
+slope alone cannot tell a shrinking radius from a fixed one:
 test_each_iteration_gathers_with_its_scheduled_radii checks the schedule exactly in the
-kernels, and the fixed-radius control uses a wide radius whose bias shows (slope near 0).
+kernels, and the fixed-radius control uses a wide radius whose bias shows (slope near
+-0.25, outside the range: the slope check can fail).
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy import stats as sps
 
 from conftest import load_small
-from parity import Estimate, agreement, iteration_images
+from parity import Estimate, agreement, iteration_images, losses
 from renderer.errors import PgiError
 from renderer.methods.pm import PhotonMapping
 from renderer.methods.sppm import StochasticProgressivePhotonMapping
+from stats import ALPHA, loglog_slope, mean_and_se
 from test_pm import RES, masked_mean, reference
 
 BUDGETS = [1, 2, 4, 8, 16, 32, 64]
-SLOPE_BAND = (-1.1, -0.55)
+SEEDS = 12
+THEORY = (-1.0, -2 / 3)  # the slope range before the asymptotic regime (module docstring)
+WIDE_SEEDS = 4
 
 
 @pytest.fixture(scope="module")
@@ -58,13 +65,9 @@ def error_curve(cls, ref, seed: int, **params) -> tuple[np.ndarray, np.ndarray]:
     return np.array(mse), images
 
 
-def slope(mse: np.ndarray) -> float:
-    return float(np.polyfit(np.log(BUDGETS), np.log(np.maximum(mse, 1e-30)), 1)[0])
-
-
 @pytest.fixture(scope="module")
 def sppm_runs(ref):
-    return [error_curve(StochasticProgressivePhotonMapping, ref, s) for s in range(3)]
+    return [error_curve(StochasticProgressivePhotonMapping, ref, s) for s in range(SEEDS)]
 
 
 @pytest.fixture(scope="module")
@@ -73,56 +76,70 @@ def sppm_curves(sppm_runs):
 
 
 def test_image_mean_agrees_with_pt(ref, sppm_runs):
-    """Over its 3 x 64 iterations sppm's mean over the pixels that do not see the light
-    agrees with pt's (radius bias below the noise here, as the slope test's docstring
-    says), and the check has power: 5 % less or more light fails."""
+    """Over its SEEDS x 64 iterations sppm's mean colour over the pixels that do not see the
+    light agrees with pt's (radius bias below the noise here, as the module docstring says),
+    and the check has power: 5 % less or more light fails, and so does 5 % less in any one
+    channel alone."""
     reference_estimate, mask = ref
     sppm = Estimate(np.concatenate([images for _, images in sppm_runs]))
     pt = masked_mean(reference_estimate, mask)
     result = agreement(masked_mean(sppm, mask), pt)
-    assert result.z_ok, result
-    for scale in (0.95, 1.05):
+    assert result.passes, result
+    for scale in losses(0.05):
         off = agreement(masked_mean(Estimate(sppm.samples * scale), mask), pt)
-        assert not off.z_ok, f"sppm x {scale} passed: {off}"
+        assert not off.passes, f"sppm x {scale} passed: {off}"
 
 
-def test_error_decreases_with_the_budget(sppm_curves):
-    mean = sppm_curves.mean(axis=0)
-    print("sppm MSE by budget", dict(zip(BUDGETS, mean.round(8), strict=True)))
-    assert mean[-1] < mean[3] < mean[0]
-    assert np.all(mean[1:] < mean[:-1] * 1.2), "within noise, each budget does no worse"
+def test_error_falls_with_the_budget(sppm_curves):
+    fit = loglog_slope(sppm_curves, BUDGETS)
+    print("sppm MSE by budget", dict(zip(BUDGETS, sppm_curves.mean(axis=0).round(8), strict=True)))
+    assert fit.interval(ALPHA)[1] < 0, f"{fit}: the error does not fall"
 
 
 def test_convergence_slope_matches_theory(sppm_curves):
-    fitted = slope(sppm_curves.mean(axis=0))
-    print(f"fitted MSE slope {fitted:.3f}, band {SLOPE_BAND}")
-    assert SLOPE_BAND[0] < fitted < SLOPE_BAND[1]
+    fit = loglog_slope(sppm_curves, BUDGETS)
+    print(f"sppm: {fit}, interval {fit.interval(ALPHA)}, theory {THEORY}")
+    assert fit.consistent_with(*THEORY, ALPHA), f"{fit}: {fit.interval(ALPHA)} misses {THEORY}"
 
 
 WIDE = {"radius": 0.25, "volume_radius": 0.25}
 
 
 @pytest.fixture(scope="module")
-def wide_pm(ref):
-    return error_curve(PhotonMapping, ref, 0, **WIDE)[0]
+def wide_runs(ref):
+    """MSE curves of pm and of sppm from the same wide radius, one pair per seed."""
+    return [
+        (error_curve(PhotonMapping, ref, s, **WIDE)[0],
+         error_curve(StochasticProgressivePhotonMapping, ref, s, **WIDE)[0])
+        for s in range(WIDE_SEEDS)
+    ]  # fmt: skip
 
 
-def test_fixed_radius_stalls(wide_pm):
-    """The control: pm with a wide fixed radius plateaus at its bias."""
-    assert slope(wide_pm) > SLOPE_BAND[1]
+def test_fixed_radius_stalls(wide_runs):
+    """The control: pm with a wide fixed radius plateaus at its bias, and the slope check
+    above tells it from the theory (measured per seed: -0.21 to -0.27)."""
+    fit = loglog_slope(np.stack([pm for pm, _ in wide_runs]), BUDGETS)
+    print(f"pm with a wide radius: {fit}, interval {fit.interval(ALPHA)}")
+    assert fit.interval(ALPHA)[0] > THEORY[1], fit
 
 
-def test_shrinking_radius_leaves_the_fixed_radius_plateau(ref, wide_pm):
+def test_shrinking_radius_leaves_the_fixed_radius_plateau(wide_runs):
     """Consistency itself: from the same wide radius, sppm keeps converging where pm stalls.
     With one seed both draw the same photons and camera samples (their first iterations are
     identical), so the ratio of their errors measures the radius schedule alone: 1 exactly if
     sppm's radius stayed put. After 64 iterations sppm's radii are 64^(-1/6) = 1/2 of the
     start; measured MSE ratios sppm / pm: 0.42 and 0.44 (seeds 0 and 1; 0.49 and 0.55 at 32
-    iterations), while pm's error still falls 1.5x from 8 to 64 iterations (its variance)."""
-    sppm = error_curve(StochasticProgressivePhotonMapping, ref, 0, **WIDE)[0]
-    print(f"MSE at {BUDGETS[-1]} iterations: pm {wide_pm[-1]:.3g}, sppm {sppm[-1]:.3g}")
-    assert sppm[0] == wide_pm[0]
-    assert sppm[-1] < 0.6 * wide_pm[-1]
+    iterations), while pm's error still falls 1.5x from 8 to 64 iterations (its variance).
+    Asserted: over the seeds, the log of the ratio is below 0 by a one-sided t-test at
+    stats.ALPHA. How much it falls is not predicted here (bias and variance both change with
+    the radius); the schedule itself is checked exactly below."""
+    for pm, sppm in wide_runs:
+        assert sppm[0] == pm[0]
+    log_ratio = np.log([sppm[-1] / pm[-1] for pm, sppm in wide_runs])
+    mean, se = mean_and_se(log_ratio)
+    bound = mean + float(sps.t.isf(ALPHA, len(log_ratio) - 1)) * se
+    print(f"MSE ratio sppm / pm at {BUDGETS[-1]} iterations: {np.exp(log_ratio).round(3)}")
+    assert bound < 0, f"log ratio {mean:.3f} +- {se:.3f}: sppm did not leave the plateau"
 
 
 def test_radii_follow_the_schedule():
