@@ -83,76 +83,93 @@ static RayStart off_the_light(const Scene &scene, const Vec3 &position, const Ve
 }
 
 // Emission: a light by power, then a point and a direction on it (Jensen 2001, ch. 5).
-void LightPathTracer::emit(LightPathState &p, size_t slot, int64_t path) {
-    const Scene &scene = *scene_;
-    double u_pick = p.rng.next(), u1 = p.rng.next(), u2 = p.rng.next(), u3 = p.rng.next();
-    double u4 = p.rng.next(), u5 = p.rng.next();
-    size_t li = scene.light_selection.sample(u_pick);
+EmissionSample sample_emission(const Scene &scene, const double u[6]) {
+    EmissionSample s;
+    if (scene.light_selection.size() == 0 || scene.light_selection.total() <= 0) return s;
+    size_t li = scene.light_selection.sample(u[0]);
     double pick = scene.light_selection.pmf(li);
-    if (!(pick > 0)) return;
+    if (!(pick > 0)) return s;
+    s.light = int(li);
     const Light &l = scene.lights[li];
     switch (l.type) {
         case LightType::Area: {
             // Point uniform by area, direction cosine-weighted on the front side:
             // power = Le cos / (pdf_A * cos / pi) = Le * pi * A / pick.
             const AreaEmitter &e = scene.area_emitters[l.emitter];
-            int tri = e.triangles[e.by_area.sample(u1)];
-            const Triangle &T = scene.triangles[tri];
+            s.triangle = e.triangles[e.by_area.sample(u[1])];
+            const Triangle &T = scene.triangles[s.triangle];
             double b1, b2;
-            square_to_triangle(u2, u3, b1, b2);
-            Vec3 x = T.point(b1, b2);
-            double inv_pdf_area = e.area / pick;
-            if (record_vertices_) {
-                LightVertex &v = slot_vertex_[slot];
-                v = LightVertex();
-                v.pos = x;
-                v.wi = T.n;
-                v.power = e.radiance * inv_pdf_area;
-                v.path = int32_t(path);
-                v.triangle = tri;
-                v.medium = T.transition ? T.exterior : emission_medium_triangle_[tri];
-                v.depth = 0;
-                v.kind = VertexKind::Emission;
-                slot_has_vertex_[slot] = 1;
-            }
-            Vec3 local = square_to_cosine_hemisphere(u4, u5);
-            if (local.z <= 0) return;
-            p.dir = Frame(T.n).to_world(local);
-            p.power = e.radiance * (kPi * inv_pdf_area);
-            start_path_at(p, scene.spawn(x, tri, p.dir));
-            p.medium = T.transition ? T.medium_after(-1, p.dir) : emission_medium_triangle_[tri];
+            square_to_triangle(u[2], u[3], b1, b2);
+            s.pos = T.point(b1, b2);
+            s.vertex_power = e.radiance * (e.area / pick);
+            Vec3 local = square_to_cosine_hemisphere(u[4], u[5]);
+            if (local.z <= 0) return s;
+            s.dir = Frame(T.n).to_world(local);
+            s.power = e.radiance * (kPi * (e.area / pick));
             break;
         }
-        case LightType::Point: {
-            p.dir = square_to_uniform_sphere(u4, u5);
-            start_path_at(p, off_the_light(scene, l.position, p.dir));
-            p.power = l.intensity * (4 * kPi / pick);
-            p.medium = emission_medium_light_[li];
+        case LightType::Point:
+            s.pos = l.position;
+            s.dir = square_to_uniform_sphere(u[4], u[5]);
+            s.power = l.intensity * (4 * kPi / pick);
             break;
-        }
         case LightType::Spot: {
             // Uniform in the cutoff cone, weighted by the falloff.
-            double cos_theta = 1 - u4 * (1 - l.cos_cutoff);
-            p.dir = direction_around(l.direction, cos_theta, u5);
-            start_path_at(p, off_the_light(scene, l.position, p.dir));
-            double falloff = l.spot_falloff(p.dir);
-            p.power = l.intensity * (falloff * 2 * kPi * (1 - l.cos_cutoff) / pick);
-            p.medium = emission_medium_light_[li];
+            double cos_theta = 1 - u[4] * (1 - l.cos_cutoff);
+            s.pos = l.position;
+            s.dir = direction_around(l.direction, cos_theta, u[5]);
+            s.power = l.intensity * (l.spot_falloff(s.dir) * 2 * kPi * (1 - l.cos_cutoff) / pick);
             break;
         }
         case LightType::Directional: {
             // A disk covering the scene's bounding sphere, just outside it,
             // perpendicular to the direction of travel: power = E * pi R^2 / pick.
             double radius = scene.scene_radius * 1.01;
-            Vec3 disk = square_to_cosine_hemisphere(u4, u5);  // x, y uniform on the unit disk
+            Vec3 disk = square_to_cosine_hemisphere(u[4], u[5]);  // x, y uniform on the unit disk
             Frame f(l.direction);
-            p.dir = l.direction;
-            start_path_at(p, scene.scene_center - l.direction * radius + (f.s * disk.x + f.t * disk.y) * radius);
-            p.power = l.intensity * (kPi * radius * radius / pick);
-            p.medium = emission_medium_light_[li];
+            s.pos = scene.scene_center - l.direction * radius + (f.s * disk.x + f.t * disk.y) * radius;
+            s.dir = l.direction;
+            s.power = l.intensity * (kPi * radius * radius / pick);
             break;
         }
     }
+    s.has_direction = true;
+    return s;
+}
+
+void LightPathTracer::emit(LightPathState &p, size_t slot, int64_t path) {
+    const Scene &scene = *scene_;
+    double u[6];
+    for (double &v : u) v = p.rng.next();
+    const EmissionSample e = sample_emission(scene, u);
+    if (e.light < 0) return;
+    const Light &l = scene.lights[e.light];
+    if (l.type == LightType::Area) {
+        const Triangle &T = scene.triangles[e.triangle];
+        if (record_vertices_) {
+            LightVertex &v = slot_vertex_[slot];
+            v = LightVertex();
+            v.pos = e.pos;
+            v.wi = T.n;
+            v.power = e.vertex_power;
+            v.path = int32_t(path);
+            v.triangle = e.triangle;
+            v.medium = T.transition ? T.exterior : emission_medium_triangle_[e.triangle];
+            v.depth = 0;
+            v.kind = VertexKind::Emission;
+            slot_has_vertex_[slot] = 1;
+        }
+        if (!e.has_direction) return;
+        start_path_at(p, scene.spawn(e.pos, e.triangle, e.dir));
+        p.medium = T.transition ? T.medium_after(-1, e.dir) : emission_medium_triangle_[e.triangle];
+    } else {
+        // A point or spot light's path starts off the light; a directional light's on its disk.
+        start_path_at(p, l.type == LightType::Directional ? RayStart{e.pos, 0.0}
+                                                           : off_the_light(scene, e.pos, e.dir));
+        p.medium = emission_medium_light_[e.light];
+    }
+    p.dir = e.dir;
+    p.power = e.power;
     double peak = max_component(p.power);
     if (!(peak > 0) || !is_finite(p.power)) return;
     p.inv_initial = 1 / peak;

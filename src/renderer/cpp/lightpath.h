@@ -102,6 +102,20 @@ struct LightPathState {
     SpectralMis spectral;  // hero channel and path pdf ratios in chromatic media
 };
 
+// What emission samples from six uniforms (u[0] picks the light, u[1] an area light's
+// triangle, u[2..3] the point on it, u[4..5] the direction): the light, where the path
+// starts (an area light's point, a point or spot light's position, a point on a directional
+// light's disk before the scene), its direction and starting power. Area lights also give the
+// emission vertex's power Le A / pick; has_direction is false where no direction was drawn.
+struct EmissionSample {
+    int light = -1;
+    int triangle = -1;
+    Vec3 pos, dir;
+    RGB power{0.0}, vertex_power{0.0};
+    bool has_direction = false;
+};
+EmissionSample sample_emission(const Scene &scene, const double u[6]);
+
 class LightPathTracer {
 public:
     LightPathTracer(std::shared_ptr<const Scene> scene, int max_depth, int rr_depth, uint64_t seed,

@@ -1,6 +1,7 @@
 // Python bindings of the native core: scene construction, the wavefront
 // kernels of each method, and probes of the sampling routines for tests.
 #include "bindings.h"
+#include "lightpath.h"
 #include "pt.h"
 
 namespace nb = nanobind;
@@ -232,6 +233,78 @@ static void add_sampling_probes(nb::module_ &m) {
               }
               return std::make_tuple(to_numpy(std::move(f), {n, 3}), to_numpy(std::move(pdf), {n}));
           }, "type"_a, "reflectance"_a, "ior"_a, "normal"_a, "wo"_a, "wi"_a);
+    // The probability of picking each light (next-event estimation and emission alike).
+    m.def("light_pmf",
+          [](const Scene &s) {
+              size_t n = s.light_selection.size();
+              std::vector<double> pmf(n);
+              for (size_t i = 0; i < n; ++i) pmf[i] = s.light_selection.pmf(i);
+              return to_numpy(std::move(pmf), {n});
+          }, "scene"_a);
+    // Next-event light sampling from a point: u is (n, 4) uniforms (see Scene::sample_light).
+    m.def("sample_light",
+          [](const Scene &s, V3 from, Array<double> u) {
+              size_t n = u.shape(0);
+              std::vector<double> point(3 * n), wi(3 * n), value(3 * n), pdf(n);
+              std::vector<int32_t> light(n), triangle(n);
+              std::vector<uint8_t> valid(n), delta(n);
+              const Vec3 p = vec(from);
+              for (size_t i = 0; i < n; ++i) {
+                  const double *ui = u.data() + 4 * i;
+                  LightSample ls = s.sample_light(p, ui[0], ui[1], ui[2], ui[3]);
+                  for (int a = 0; a < 3; ++a) {
+                      point[3 * i + a] = ls.point[a];
+                      wi[3 * i + a] = ls.wi[a];
+                      value[3 * i + a] = ls.value[a];
+                  }
+                  pdf[i] = ls.pdf;
+                  light[i] = ls.light;
+                  triangle[i] = ls.triangle;
+                  valid[i] = ls.valid;
+                  delta[i] = ls.delta;
+              }
+              return nb::make_tuple(to_numpy(std::move(point), {n, 3}), to_numpy(std::move(wi), {n, 3}),
+                                    to_numpy(std::move(value), {n, 3}), to_numpy(std::move(pdf), {n}),
+                                    to_numpy(std::move(light), {n}), to_numpy(std::move(triangle), {n}),
+                                    to_numpy(std::move(valid), {n}), to_numpy(std::move(delta), {n}));
+          }, "scene"_a, "from_point"_a, "u"_a);
+    // The solid-angle pdf MIS uses for a hit on emissive triangle tri[i] at hit[i] from a point.
+    m.def("area_light_pdf",
+          [](const Scene &s, V3 from, Array<int32_t> tri, Array<double> hit) {
+              size_t n = tri.shape(0);
+              check_len(hit.shape(0), n, "hit points");
+              std::vector<double> pdf(n);
+              const Vec3 p = vec(from);
+              for (size_t i = 0; i < n; ++i) {
+                  const double *h = hit.data() + 3 * i;
+                  pdf[i] = s.area_light_pdf(tri.data()[i], p, Vec3(h[0], h[1], h[2]));
+              }
+              return to_numpy(std::move(pdf), {n});
+          }, "scene"_a, "from_point"_a, "triangle"_a, "hit"_a);
+    // Light-path emission: u is (n, 6) uniforms (see sample_emission in lightpath.h).
+    m.def("sample_emission",
+          [](const Scene &s, Array<double> u) {
+              size_t n = u.shape(0);
+              std::vector<double> pos(3 * n), dir(3 * n), power(3 * n), vertex_power(3 * n);
+              std::vector<int32_t> light(n), triangle(n);
+              std::vector<uint8_t> has_direction(n);
+              for (size_t i = 0; i < n; ++i) {
+                  EmissionSample e = sample_emission(s, u.data() + 6 * i);
+                  for (int a = 0; a < 3; ++a) {
+                      pos[3 * i + a] = e.pos[a];
+                      dir[3 * i + a] = e.dir[a];
+                      power[3 * i + a] = e.power[a];
+                      vertex_power[3 * i + a] = e.vertex_power[a];
+                  }
+                  light[i] = e.light;
+                  triangle[i] = e.triangle;
+                  has_direction[i] = e.has_direction;
+              }
+              return nb::make_tuple(to_numpy(std::move(pos), {n, 3}), to_numpy(std::move(dir), {n, 3}),
+                                    to_numpy(std::move(power), {n, 3}), to_numpy(std::move(vertex_power), {n, 3}),
+                                    to_numpy(std::move(light), {n}), to_numpy(std::move(triangle), {n}),
+                                    to_numpy(std::move(has_direction), {n}));
+          }, "scene"_a, "u"_a);
     m.def("sample_phase",
           [](int type, double g, V3 wo, Array<double> u) {
               Phase ph{PhaseType(type), g};

@@ -45,17 +45,18 @@ void Scene::finalize() {
     light_selection = Distribution1D(power);
 }
 
-LightSample Scene::sample_light(const Vec3 &p, Sampler &rng) const {
+LightSample Scene::sample_light(const Vec3 &p, double u_pick, double u1, double u2, double u3) const {
     LightSample s;
-    double u_pick = rng.next(), u1 = rng.next(), u2 = rng.next(), u3 = rng.next();
     if (light_selection.size() == 0 || light_selection.total() <= 0) return s;
     size_t li = light_selection.sample(u_pick);
     double pick = light_selection.pmf(li);
     const Light &l = lights[li];
+    s.light = int(li);
     switch (l.type) {
         case LightType::Area: {
             const AreaEmitter &e = area_emitters[l.emitter];
             int tri = e.triangles[e.by_area.sample(u1)];
+            s.triangle = tri;
             const Triangle &t = triangles[tri];
             double b1, b2;
             square_to_triangle(u2, u3, b1, b2);

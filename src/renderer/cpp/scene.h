@@ -61,6 +61,8 @@ struct LightSample {
     double dist = 0;  // to the light point (infinite for directional)
     RGB value{0.0};   // emitted radiance / pdf, including the selection probability
     double pdf = 0;   // solid-angle pdf (for MIS); 0 for delta lights
+    int light = -1;     // the light picked (-1: none)
+    int triangle = -1;  // area lights: the triangle sampled
     bool delta = false;
     bool valid = false;
 };
@@ -121,7 +123,13 @@ public:
     // a light on a surface (a lamp set into the ceiling) is reached and leaves it alike.
     double light_clearance(const Vec3 &p) const { return 2 * offset_length(p); }
 
-    LightSample sample_light(const Vec3 &p, Sampler &rng) const;
+    LightSample sample_light(const Vec3 &p, Sampler &rng) const {
+        const double u0 = rng.next(), u1 = rng.next(), u2 = rng.next(), u3 = rng.next();
+        return sample_light(p, u0, u1, u2, u3);
+    }
+    // The same from given uniforms: u_pick picks the light, u1 the triangle of an area
+    // light and (u2, u3) the point on it.
+    LightSample sample_light(const Vec3 &p, double u_pick, double u1, double u2, double u3) const;
     // Solid-angle pdf that sample_light would pick direction from `from` to the
     // point `hit` on emissive triangle `tri`.
     double area_light_pdf(int tri, const Vec3 &from, const Vec3 &hit) const;
