@@ -74,6 +74,10 @@ def native(scene):
     return build_native_scene(scene)
 
 
+def rgb(value) -> np.ndarray:
+    return np.asarray(value, np.float64)
+
+
 def emitter_triangles(scene, native, shape_index: int) -> np.ndarray:
     """Indices, in the core's triangle list, of one shape's triangles."""
     owner = np.concatenate([np.full(len(s.faces), i) for i, s in enumerate(scene.shapes)])
@@ -151,13 +155,14 @@ def emission_samples(native):
 
 
 def test_the_pmf_is_by_power(scene, native):
-    np.testing.assert_allclose(_core.light_pmf(native.core), expected_pmf(scene, native), rtol=1e-12)
+    pmf = _core.light_pmf(native.core)
+    np.testing.assert_allclose(pmf, expected_pmf(scene, native), rtol=1e-12)
 
 
 @pytest.mark.parametrize("which", ["light", "emission"])
 def test_lights_are_picked_by_the_pmf(native, light_samples, emission_samples, which):
     picked = (light_samples if which == "light" else emission_samples)["light"]
-    pmf = np.asarray(_core.light_pmf(native.core))
+    pmf = _core.light_pmf(native.core)
     counts = np.bincount(picked, minlength=len(pmf))
     result = stats.chi2_test(counts, N * pmf)
     assert result.passed(LEVEL), result
@@ -195,7 +200,7 @@ def test_area_light_points_are_uniform_by_area(scene, native, light_samples, emi
 
 def test_area_light_pdf_and_value(scene, native, light_samples):
     s = light_samples
-    pmf = np.asarray(_core.light_pmf(native.core))
+    pmf = _core.light_pmf(native.core)
     for light, shape in ((ELLIPSOID, 1), (LAMP, 2)):
         valid = (s["light"] == light) & (s["valid"] == 1)
         assert valid.sum() > 1000
@@ -228,7 +233,7 @@ def mitsuba_spot_falloff(cos_angle: np.ndarray) -> np.ndarray:
 def test_delta_light_values(scene, native):
     """A point or spot light's value is I falloff / (d^2 pick), a directional light's E / pick,
     seen from points all around them (inside, across and outside the spot's cone)."""
-    pmf = np.asarray(_core.light_pmf(native.core))
+    pmf = _core.light_pmf(native.core)
     point, spot, sun = scene.lights
     rng = np.random.default_rng(4)
     axis = (spot.target - spot.position) / np.linalg.norm(spot.target - spot.position)
@@ -242,8 +247,8 @@ def test_delta_light_values(scene, native):
             value = s[2][0]
             if light == SUN:
                 assert s[6][0] == 1 and s[7][0] == 1
-                np.testing.assert_allclose(value, np.asarray(sun.irradiance, float) / pmf[light], rtol=1e-12)
-                np.testing.assert_allclose(s[1][0], -np.asarray(sun.direction, float), rtol=1e-12)
+                np.testing.assert_allclose(value, rgb(sun.irradiance) / pmf[light], rtol=1e-12)
+                np.testing.assert_allclose(s[1][0], -rgb(sun.direction), rtol=1e-12)
                 continue
             lamp = point if light == POINT else spot
             to = lamp.position - x
@@ -255,7 +260,7 @@ def test_delta_light_values(scene, native):
                 assert s[6][0] == 0 and np.all(value == 0)
             else:
                 assert s[6][0] == 1 and s[7][0] == 1 and s[3][0] == 0
-                expected = np.asarray(lamp.intensity, float) * falloff / (d2 * pmf[light])
+                expected = rgb(lamp.intensity) * falloff / (d2 * pmf[light])
                 np.testing.assert_allclose(value, expected, rtol=1e-9)
 
 
@@ -282,7 +287,7 @@ def test_area_light_emits_cosine_weighted(scene, native, emission_samples):
 
     wrong, _, _ = stats.SphericalChi2(lambda n: e["dir"], sharper, domain, len(e["dir"])).run()
     assert not wrong.passed(LEVEL), wrong
-    pmf = np.asarray(_core.light_pmf(native.core))[LAMP]
+    pmf = _core.light_pmf(native.core)[LAMP]
     area = areas(native, emitter_triangles(scene, native, 2)).sum()
     le = np.asarray(scene.shapes[2].emission, float)
     np.testing.assert_allclose(e["power"], np.tile(le * math.pi * area / pmf, (len(e["dir"]), 1)),
@@ -299,8 +304,8 @@ def test_point_light_emits_uniformly(scene, native, emission_samples):
                                   domain, len(e["dir"]))  # fmt: skip
     result, _, _ = uniform.run()
     assert result.passed(LEVEL), result
-    pmf = np.asarray(_core.light_pmf(native.core))[POINT]
-    np.testing.assert_allclose(e["power"][0], np.asarray(point.intensity, float) * 4 * math.pi / pmf, rtol=1e-12)
+    pmf = _core.light_pmf(native.core)[POINT]
+    np.testing.assert_allclose(e["power"][0], rgb(point.intensity) * 4 * math.pi / pmf, rtol=1e-12)
 
 
 def test_spot_emits_uniformly_in_its_cone(scene, native, emission_samples):
@@ -317,9 +322,9 @@ def test_spot_emits_uniformly_in_its_cone(scene, native, emission_samples):
     # The control: a cone 2 % narrower in solid angle is rejected.
     narrower = 1 - 0.98 * (1 - cos_cut)
     assert stats.ks_test(z, sps.uniform(narrower, 1 - narrower).cdf) < LEVEL
-    pmf = np.asarray(_core.light_pmf(native.core))[SPOT]
+    pmf = _core.light_pmf(native.core)[SPOT]
     falloff = mitsuba_spot_falloff(e["dir"] @ axis)
-    expected = np.asarray(spot.intensity, float) * (falloff * 2 * math.pi * (1 - cos_cut) / pmf)[:, None]
+    expected = rgb(spot.intensity) * (falloff * 2 * math.pi * (1 - cos_cut) / pmf)[:, None]
     np.testing.assert_allclose(e["power"], expected, rtol=1e-9, atol=1e-12)
 
 
@@ -340,6 +345,6 @@ def test_directional_light_starts_on_a_disk_covering_the_scene(scene, native, em
     assert stats.ks_test(r2, sps.uniform(0, 1).cdf) > LEVEL
     assert stats.ks_test(phi, sps.uniform(0, 2 * math.pi).cdf) > LEVEL
     assert stats.ks_test(np.sqrt(r2), sps.uniform(0, 1).cdf) < LEVEL  # the control
-    pmf = np.asarray(_core.light_pmf(native.core))[SUN]
-    expected = np.asarray(sun.irradiance, float) * math.pi * radius**2 / pmf
+    pmf = _core.light_pmf(native.core)[SUN]
+    expected = rgb(sun.irradiance) * math.pi * radius**2 / pmf
     np.testing.assert_allclose(e["power"], np.tile(expected, (len(e["pos"]), 1)), rtol=1e-12)

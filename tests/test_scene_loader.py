@@ -404,9 +404,26 @@ def test_an_empty_section_adds_nothing_and_removes_nothing(tmp_path):
     base = yaml.safe_load(yaml.safe_dump(BASE))
     del base["name"], base["description"]
     write(tmp_path, base, "common.yaml")
-    path = write(tmp_path, "include: common.yaml\nmaterials:\nmedia:\nshapes:\nlights:\n")
+    base["integrator"] = {"max_depth": 3}
+    write(tmp_path, base, "common.yaml")
+    path = write(
+        tmp_path,
+        "include: common.yaml\ncamera:\nfilm:\nintegrator:\nmaterials:\nmedia:\nshapes:\nlights:\n",
+    )
     scene = load_scene(path)
     assert set(scene.materials) == {"white"} and [s.name for s in scene.shapes] == ["floor", "lamp"]
+    assert scene.integrator.max_depth == 3  # an empty integrator keeps the included one
+    assert scene.film.width == base["film"]["width"]
+
+
+def test_overrides_reach_into_sections_written_empty(tmp_path):
+    doc = yaml.safe_dump(BASE) + "integrator:\nmedia:\n"
+    path = write(tmp_path, doc)
+    fog = "media.haze={type: homogeneous, sigma_t: 0.1, albedo: 0.9}"
+    scene = load_scene(path, ["integrator.max_depth=3", fog])
+    assert scene.integrator.max_depth == 3 and scene.media["haze"].sigma_t == (0.1, 0.1, 0.1)
+    with pytest.raises(PgiError, match="no media entry 'fog' \\(it has: none\\)"):
+        load_scene(path, ["media.fog.scale=2"])
 
 
 def test_rectangle_and_cube_normals():

@@ -328,6 +328,8 @@ def _merge_includes(main: Path, doc: dict, origins: _Origins) -> dict:
                 value = {}
             if value is None and key in ("shapes", "lights"):
                 value = []
+            if value is None and key in merged:  # an empty camera/film/integrator: keeps the
+                continue  # included one (an empty section adds nothing and removes nothing)
             target = merged.get(key)
             if (
                 key in ("materials", "media")
@@ -390,9 +392,10 @@ def _apply_override(doc: dict, text: str, origins: _Origins) -> None:
                     f"(it has: {known})"
                 )
             else:
-                if tok not in node:
+                if node.get(tok) is None:  # missing, or a section written empty
                     created.append(tuple(tokens[: n + 1]))
-                node = node.setdefault(tok, {})
+                    node[tok] = {}
+                node = node[tok]
         elif isinstance(node, list) and isinstance(tok, int) and tok < len(node):
             if last:
                 node[tok] = value
