@@ -73,6 +73,26 @@ def test_lt_pixels_match(estimates, other):
     assert result.z_ok, f"{name} vs {other}: {result}"
 
 
+@pytest.mark.parametrize("other", ["pt", "mitsuba"])
+def test_lt_checks_have_power(estimates, other):
+    """The controls of the two tests above: lt's images 3 % darker or brighter fail, and so
+    does a 5 % loss in any one quadrant of the image alone, also where the image mean still
+    agrees (measured: the lower quadrants' loss passes the mean check on both scenes and
+    fails the block checks)."""
+    name, lt, pt, mi = estimates
+    ref = pt if other == "pt" else mi
+    for scale in (0.97, 1.03):
+        agrees, detail = _agrees(Estimate(lt.samples * scale), ref)
+        assert not agrees, f"{name} vs {other}: lt x {scale} passed: {detail}"
+    half = RES // 2
+    for rows in (slice(0, half), slice(half, RES)):
+        for cols in (slice(0, half), slice(half, RES)):
+            samples = lt.samples.copy()
+            samples[:, rows, cols] *= 0.95
+            agrees, detail = _agrees(Estimate(samples), ref)
+            assert not agrees, f"{name} vs {other}: a quadrant 5 % darker passed: {detail}"
+
+
 # A slab of chromatic fog over a floor (its bottom face below the floor: coplanar faces
 # would make the medium at the floor ambiguous), lit by a point light and a spot light above it:
 # light paths start in vacuum (found by probing), enter the fog through its null
