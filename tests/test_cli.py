@@ -896,6 +896,23 @@ def test_standard_output_that_cannot_be_written(tmp_path):
     assert r.stderr == "pgi: error: cannot write to standard output: No space left on device\n"
 
 
+def test_standard_output_closed_from_the_start(tmp_path):
+    """Started with stdout closed (`pgi ... >&-`, so Python has none): what pgi would print is
+    lost, the work is done and the exit is 0, without a traceback."""
+
+    def closed(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run([*PGI, *args], stderr=subprocess.PIPE, text=True,
+                              preexec_fn=lambda: os.close(1))  # fmt: skip
+
+    r = closed("methods")
+    assert r.returncode == 0 and "Traceback" not in r.stderr, r.stderr
+    out = tmp_path / "x.exr"
+    r = closed("render", "cbox", "--method", "pt", "--spp", "1", "-q", "--threads", "1",
+               "--set", "film.width=8", "--set", "film.height=8", "-o", str(out))  # fmt: skip
+    assert r.returncode == 0 and r.stderr == "", r.stderr
+    assert out.exists() and out.with_suffix(".json").exists()
+
+
 def test_fingerprints_cover_the_code_each_output_runs():
     """Render code: every renderer source, C++ included. Reference code: the scene loader
     and the Mitsuba export, not the methods or the C++ core. Both are content hashes."""

@@ -460,7 +460,11 @@ def main(argv: list[str] | None = None) -> int:
     main_thread = threading.current_thread() is threading.main_thread()
     _sigterm_arrived.clear()
     on_sigterm = signal.signal(signal.SIGTERM, _terminate) if main_thread else None
-    stdout, sys.stdout = sys.stdout, _CheckedStdout(sys.stdout)
+    stdout = sys.stdout
+    # Started with standard output closed (`>&-`): Python has none; what pgi prints is lost,
+    # as it would be in /dev/null, and the work itself goes on.
+    sink = open(os.devnull, "w") if stdout is None else None  # closed below
+    sys.stdout = _CheckedStdout(sink or stdout)
     try:
         args = parser.parse_args(argv)  # --help writes to stdout too
         with native_passes_interruptible():
@@ -490,6 +494,8 @@ def main(argv: list[str] | None = None) -> int:
         return _interrupted(interrupt)
     finally:
         sys.stdout = stdout
+        if sink is not None:
+            sink.close()
         if on_sigterm is not None:  # None: a handler from outside Python, left in place
             signal.signal(signal.SIGTERM, on_sigterm)
 
