@@ -870,9 +870,18 @@ def test_a_truncated_vdb_is_a_short_error(tmp_path):
         expect_error(write(tmp_path, doc), "media.fog.density", f"OpenVDB file: {why}")
 
 
-@pytest.mark.parametrize(("key", "text"), [("camera.fov", "1:20"), ("film.width", "0100")])
+@pytest.mark.parametrize(
+    ("key", "text"),
+    [
+        ("camera.fov", "1:20"),
+        ("film.width", "0100"),
+        ("film.width", "2_56"),
+        ("camera.fov", "1_0.5"),
+    ],
+)
 def test_yaml_1_1_number_forms_are_not_read_silently(tmp_path, key, text):
-    """YAML 1.1 read 1:20 as 80 (base 60) and 0100 as 64 (octal); YAML 1.2, and pgi, do not."""
+    """YAML 1.1 read 1:20 as 80 (base 60), 0100 as 64 (octal) and 2_56 as 256 (digit groups);
+    YAML 1.2, and pgi, do not."""
     expect_error(write(tmp_path, BASE), key, f"got '{text}'", [f"{key}={text}"])
     field = {"camera.fov": "fov: 40", "film.width": "width: 8"}[key]
     doc = yaml.safe_dump(BASE).replace(field, field.split(":")[0] + f": {text}")
