@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 from pathlib import Path
@@ -930,3 +931,36 @@ def test_values_are_quoted_as_yaml_writes_them(tmp_path, override, key, shown):
     """Not as Python's True, None and datetime.date(2001, 1, 1) (a review)."""
     msg = expect_error(write(tmp_path, BASE), key, re.escape(shown), [override])
     assert msg.endswith(shown), msg
+
+
+def test_inputs_that_are_not_regular_files_say_what_they_are(tmp_path, monkeypatch):
+    """A folder, a pipe or a symbolic link to nothing where a file was expected is named as
+    such (each was "not found" before, which sent the user looking for a missing file)."""
+    (tmp_path / "d.npy").mkdir()
+    os.mkfifo(tmp_path / "pipe.ply")
+    (tmp_path / "loop.yaml").symlink_to(tmp_path / "loop.yaml")
+    grid = {"fog": {"type": "grid", "density": "d.npy", "sigma_t": 1, "albedo": 0.5}}
+    expect_error(write(tmp_path, edit(media=grid)), "media.fog.density", "density file is a folder")
+    mesh = {"type": "mesh", "file": "pipe.ply", "material": "white"}
+    doc = edit(shapes=[*BASE["shapes"], mesh])
+    expect_error(write(tmp_path, doc), "shapes[2].file", "mesh file is not a regular file")
+    with pytest.raises(PgiError, match="scene file is a symbolic link to nothing"):
+        load_scene(tmp_path / "loop.yaml")
+    monkeypatch.chdir(tmp_path)  # a bare name that exists here, not a scene of that name
+    with pytest.raises(PgiError, match="^pipe.ply: scene file is not a regular file"):
+        load_scene("pipe.ply")
+
+
+def test_a_file_included_twice_is_named(tmp_path):
+    base = yaml.safe_load(yaml.safe_dump(BASE))
+    del base["name"], base["description"]
+    write(tmp_path, base, "common.yaml")
+    path = write(tmp_path, "include: [common.yaml, ./common.yaml]\n")
+    expect_error(path, "include[1]", r"already included \(include\[0\]\)")
+
+
+def test_a_tabulated_phase_needs_values_or_a_file(tmp_path):
+    both = {"type": "tabulated", "values": [1], "file": "p.txt"}
+    for phase, given in (({"type": "tabulated"}, "neither"), (both, "both")):
+        fog = {"fog": {"type": "homogeneous", "sigma_t": 1, "albedo": 0.5, "phase": phase}}
+        expect_error(write(tmp_path, edit(media=fog)), "media.fog.phase", f"; {given} given$")

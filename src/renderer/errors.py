@@ -3,6 +3,7 @@
 import datetime
 import re
 import reprlib
+from pathlib import Path
 from typing import Any
 
 
@@ -19,6 +20,18 @@ def one_line(text: str, limit: int = 160) -> str:
     """A library's message quoted in ours: whitespace runs collapsed, cut to `limit`
     characters (a corrupt file can make one gigabytes long)."""
     return shorten(" ".join(text.split()), limit)
+
+
+def not_a_file(path: Path) -> str:
+    """Why ``path``, which the caller found is not a regular file, cannot be read as one:
+    "not found", or what it is instead."""
+    if path.is_symlink() and not path.exists():
+        return "is a symbolic link to nothing (its target is missing, or the links loop)"
+    if path.is_dir():
+        return "is a folder"
+    if path.exists():
+        return "is not a regular file (a device, pipe or socket)"
+    return "not found"
 
 
 def mitsuba_cause(text: str) -> str:

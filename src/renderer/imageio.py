@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import OpenImageIO as oiio
 
-from .errors import PgiError, one_line, shorten
+from .errors import PgiError, not_a_file, one_line, shorten
 
 FLOAT_TYPES = ("half", "float")  # OpenEXR's pixel types for radiance (the third is uint)
 
@@ -30,7 +30,10 @@ def read_exr_and_channels(path: str | Path) -> tuple[np.ndarray, int]:
     if path.is_dir():
         raise PgiError(f"{path}: is a folder, expected an image file")
     if not path.is_file():
-        raise PgiError(f"{path}: no such image file")
+        reason = not_a_file(path)
+        raise PgiError(
+            f"{path}: no such image file" if reason == "not found" else f"{path} {reason}"
+        )
     with _stderr_captured() as library_said:
         buf = oiio.ImageBuf(str(path))
         unreadable = _first_line(buf.geterror()) if buf.has_error else ""

@@ -25,7 +25,7 @@ from typing import Any, NoReturn
 import numpy as np
 import yaml
 
-from renderer.errors import PgiError, mitsuba_cause, one_line, shorten
+from renderer.errors import PgiError, mitsuba_cause, not_a_file, one_line, shorten
 from renderer.errors import shorten_repr as _describe
 from renderer.ranges import INT32_MAX, integer_problem, number_problem
 from renderer.scene import primitives
@@ -115,9 +115,11 @@ def find_scene_file(path: str | Path) -> Path:
         for c in candidates:
             if c.is_file():
                 return c
+        if p.exists() or p.is_symlink():  # here, but not a scene file: say what it is
+            raise PgiError(f"{p}: scene file {not_a_file(p)}")
         looked = ", ".join(dict.fromkeys(str(c.parent.parent) for c in candidates))
         raise PgiError(f"scene {str(path)!r} not found (looked in {looked})")
-    raise PgiError(f"{p}: scene file not found")
+    raise PgiError(f"{p}: scene file {not_a_file(p)}")
 
 
 # --------------------------------------------------------------------------- reading YAML
@@ -303,9 +305,12 @@ def _merge_includes(main: Path, doc: dict, origins: _Origins) -> dict:
         if file.is_dir():
             origins.fail(("include", n), f"{file} is a folder; include a scene file in it")
         if not file.is_file():
-            origins.fail(("include", n), f"included file not found: {file}")
+            origins.fail(("include", n), f"included file {not_a_file(file)}: {file}")
         if file.resolve() == main.resolve():
             origins.fail(("include", n), "a scene cannot include itself")
+        for earlier, (other, _) in enumerate(sources):
+            if file.resolve() == other.resolve():
+                origins.fail(("include", n), f"{name} is already included (include[{earlier}])")
         sources.append((file, _read_yaml(file)))
     sources.append((main, doc))
     merged: dict[str, Any] = {}
@@ -629,7 +634,8 @@ def _phase(val: _Validator, d: Any, p: KeyPath) -> Phase:
     if kind == "tabulated":
         val.mapping(d, p, required=("type",), optional=("values", "file"))
         if ("values" in d) == ("file" in d):
-            val.fail(p, "give either values (a list) or file (.npy or text), not both")
+            given = "both" if "values" in d else "neither"
+            val.fail(p, f"give either values (a list) or file (.npy or text); {given} given")
         if "values" in d:
             raw = d["values"]
             if not isinstance(raw, list):
@@ -640,6 +646,8 @@ def _phase(val: _Validator, d: Any, p: KeyPath) -> Phase:
             if file.suffix == ".npy":
                 values = _read_npy(val, file, p + ("file",))
             else:
+                if not file.is_file():
+                    val.fail(p + ("file",), f"file {not_a_file(file)}: {file}")
                 try:
                     with warnings.catch_warnings():  # an empty file: numpy warns, we say so
                         warnings.simplefilter("ignore", UserWarning)
@@ -710,7 +718,7 @@ def _read_npy(val: _Validator, file: Path, p: KeyPath) -> np.ndarray:
     """One array from a .npy file (no pickles), mapped, not read: its shape can be checked
     before a header that claims terabytes allocates anything."""
     if not file.is_file():
-        val.fail(p, f"file not found: {file}")
+        val.fail(p, f"file {not_a_file(file)}: {file}")
     try:
         a = np.load(file, allow_pickle=False, mmap_mode="r")
     except MemoryError:
@@ -785,7 +793,7 @@ def _load_density(
         file = here / val.string(d["file"], p + ("file",))
         source = file
         if not file.is_file():
-            val.fail(p, f"density file not found: {file}")
+            val.fail(p, f"density file {not_a_file(file)}: {file}")
         if kind == "npy":
             a = _load_npy(val, file, p)
         else:
@@ -933,7 +941,7 @@ def _mesh_file(val: _Validator, v: Any, p: KeyPath) -> tuple[np.ndarray, np.ndar
     if file.suffix.lower() not in MESH_SUFFIXES:
         val.fail(p, f"expected a .ply or .obj file, got {file.name!r}")
     if not file.is_file():
-        val.fail(p, f"mesh file not found: {file}")
+        val.fail(p, f"mesh file {not_a_file(file)}: {file}")
     if file.stat().st_size == 0:  # Mitsuba's own message for it names another cause
         val.fail(p, f"mesh file is empty: {file}")
     from renderer.mitsuba_env import import_mitsuba
