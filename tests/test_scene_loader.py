@@ -964,3 +964,13 @@ def test_a_tabulated_phase_needs_values_or_a_file(tmp_path):
     for phase, given in (({"type": "tabulated"}, "neither"), (both, "both")):
         fog = {"fog": {"type": "homogeneous", "sigma_t": 1, "albedo": 0.5, "phase": phase}}
         expect_error(write(tmp_path, edit(media=fog)), "media.fog.phase", f"; {given} given$")
+
+
+def test_a_check_that_fails_beside_an_override_names_it(tmp_path):
+    """camera.target equals camera.origin only because an override moved the origin: the
+    message says so, though the key it names (target) is the file's."""
+    path = write(tmp_path, BASE)
+    target = BASE["camera"]["target"]
+    msg = expect_error(path, "camera.target", "equals camera.origin",
+                       overrides=["film.width=8", f"camera.origin={target}"])  # fmt: skip
+    assert f"(after override 'camera.origin={target}')" in msg and "film.width" not in msg

@@ -265,6 +265,7 @@ class _Origins:
     def __init__(self, main: Path) -> None:
         self.main = main
         self.parts: dict[KeyPath, tuple[Path, KeyPath, str]] = {}
+        self.overrides: list[tuple[KeyPath, str]] = []  # (key path, the override as quoted)
 
     def add(self, merged: KeyPath, file: Path, local: KeyPath, note: str = "") -> None:
         self.parts[merged] = (file, local, note)
@@ -280,8 +281,14 @@ class _Origins:
         return self.locate(path)[0]
 
     def where(self, path: KeyPath) -> str:
-        """The file and key path the merged ``path`` was written at, as messages give them."""
+        """The file and key path the merged ``path`` was written at, as messages give them.
+        A check that fails beside an override (another key of its section: camera.target
+        when the override set camera.origin) names the overrides of that section too."""
         file, local, note = self.locate(path)
+        if not note:
+            beside = [text for p, text in self.overrides if p[:1] == path[:1]]
+            if beside:
+                note = f" (after override {', '.join(beside)})"
         return f"{file}{note}: {format_path(local)}"
 
     def fail(self, path: KeyPath, msg: str) -> NoReturn:
@@ -411,6 +418,7 @@ def _apply_override(doc: dict, text: str, origins: _Origins) -> None:
             raise PgiError(f"override {_describe(text)}: {missing} does not exist in the scene")
     for path in [*created, tuple(tokens)]:
         origins.add(path, origins.main, path, f" (override {_describe(text)})")
+    origins.overrides.append((tuple(tokens), _describe(text)))
 
 
 # --------------------------------------------------------------------------- validation
