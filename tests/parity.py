@@ -216,6 +216,23 @@ def losses(fraction: float, channels: int = 3) -> list[np.ndarray]:
     return scales
 
 
+def darken_one_block(a: Estimate, b: Estimate, size: int, z_extra: float = 3.0):
+    """The control of a block check: ``a`` with one size x size block darkened by z_extra
+    standard errors beyond the check's Bonferroni bound, the block whose relative standard
+    error is smallest (the one a bug there would have to hide in the least). Returns the
+    estimate and the fraction of light taken from that block."""
+    ba, bb = a.blocks(size), b.blocks(size)
+    limit = agreement(ba, bb).z_limit
+    se = np.sqrt(ba.stderr**2 + bb.stderr**2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = np.where(ba.mean > 0, se / ba.mean, np.inf).max(axis=-1)  # worst channel
+    row, col = np.unravel_index(int(np.argmin(rel)), rel.shape)
+    fraction = float(min(1.0, (limit + z_extra) * rel[row, col]))
+    samples = a.samples.copy()
+    samples[:, row * size : (row + 1) * size, col * size : (col + 1) * size] *= 1 - fraction
+    return Estimate(samples), fraction
+
+
 def same_image(a: Estimate, b: Estimate, alpha: float, block: int = 3) -> tuple[bool, str]:
     """Two renders of one image: block means and the image mean agree (chi-square and largest
     |z| at ``alpha``), and why, for the assertion message."""
