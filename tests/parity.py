@@ -233,6 +233,14 @@ def darken_one_block(a: Estimate, b: Estimate, size: int, z_extra: float = 3.0):
     return Estimate(samples), fraction
 
 
+def assert_block_check_has_power(a: Estimate, b: Estimate, label: str, size: int = 4) -> None:
+    """One size x size block of ``a`` darkened (darken_one_block) fails the block check."""
+    darker, fraction = darken_one_block(a, b, size)
+    result = agreement(darker.blocks(size), b.blocks(size))
+    print(f"{label}: one block {fraction:.1%} darker: {result}")
+    assert fraction < 1 and not result.passes, f"{label}: a {fraction:.1%} loss passed: {result}"
+
+
 def same_image(a: Estimate, b: Estimate, alpha: float, block: int = 3) -> tuple[bool, str]:
     """Two renders of one image: block means and the image mean agree (chi-square and largest
     |z| at ``alpha``), and why, for the assertion message."""

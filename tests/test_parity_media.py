@@ -20,7 +20,15 @@ import pytest
 import yaml
 
 from conftest import SCENES, load_small
-from parity import ALPHA, Estimate, agreement, mean_agrees, mitsuba, ours
+from parity import (
+    ALPHA,
+    Estimate,
+    agreement,
+    assert_block_check_has_power,
+    mean_agrees,
+    mitsuba,
+    ours,
+)
 from renderer.methods.pt import PathTracing
 from renderer.scene import load_scene
 from renderer.scene.mitsuba_export import reference_integrator
@@ -74,6 +82,7 @@ def test_blocks_match_mitsuba(estimates):
     name, a, b = estimates
     result = agreement(a.blocks(4), b.blocks(4), ALPHA)
     assert result.passes, f"{name}: {result}"
+    assert_block_check_has_power(a, b, name)
 
 
 # --------------------------------------------------------------------------- configurations
@@ -162,6 +171,7 @@ def test_configuration_matches_mitsuba(config_estimates):
     assert agrees, f"{name}: {result}"
     result = agreement(a.blocks(4), b.blocks(4), ALPHA)
     assert result.passes, f"{name}: {result}"
+    assert_block_check_has_power(a, b, name)
 
 
 def test_configuration_bias_fails(config_estimates):
