@@ -27,7 +27,7 @@ TABLES = {
     "random": np.random.default_rng(5).random(33) * 3,
     "mie-2um": np.array(mie_phase_table(2.0, resolution=1024)),
 }
-N_TESTS = 1 + len(TABLES) + 1 + 1
+N_TESTS = 1 + len(TABLES) + 1 + 1  # the sampling tests (controls must fail)
 LEVEL = stats.sidak(stats.ALPHA, N_TESTS)
 
 
@@ -50,6 +50,17 @@ def rayleigh_pdf(wo):
     return lambda d: 3 / (16 * np.pi) * (1 + (d @ fwd) ** 2)
 
 
+def mu_chi2(mu: np.ndarray, density, bins: int = 200) -> stats.Chi2Result:
+    """Chi-square of cos theta samples against an unnormalised density of cos theta, in bins
+    of equal width (its CDF by the trapezoid rule on a fine grid)."""
+    fine = np.linspace(-1, 1, 200_001)
+    f = density(fine)
+    cdf = np.concatenate([[0], np.cumsum(0.5 * (f[1:] + f[:-1]) * np.diff(fine))])
+    edges = np.linspace(-1, 1, bins + 1)
+    edges[-1] = 1 + 1e-12
+    return stats.chi2_1d(mu, edges, lambda x: np.interp(x, fine, cdf / cdf[-1]))
+
+
 def domain():
     return stats.SphericalDomain(axis=tuple(-np.asarray(WO)), res_z=64, res_phi=16)
 
@@ -61,6 +72,10 @@ def test_rayleigh_sampling_chi2():
 
     result, _, _ = stats.SphericalChi2(sample, rayleigh_pdf(WO), domain(), 300_000).run()
     assert result.passed(LEVEL), result
+    # The control, in cos theta where the density varies: 1 + 0.8 mu^2 is rejected.
+    mu = sample(300_000) @ (-np.asarray(WO) / np.linalg.norm(WO))
+    assert mu_chi2(mu, lambda m: 1 + m**2).passed(LEVEL)
+    assert not mu_chi2(mu, lambda m: 1 + 0.8 * m**2).passed(LEVEL)
 
 
 def test_rayleigh_eval_and_pdf():
@@ -81,6 +96,27 @@ def test_tabulated_sampling_chi2(name):
 
     result, _, _ = stats.SphericalChi2(sample, table_pdf(values, WO), domain(), 300_000).run()
     assert result.passed(LEVEL), f"{name}: {result}"
+
+
+def test_tabulated_chi2_rejects_a_slightly_wrong_table():
+    """The control, in cos theta: samples of the random table pass against their own density
+    and fail against the same table with its largest node 10 % higher, and against its piecewise-
+    constant version (each interval at the mean of its nodes: a sampler ignoring the slope)."""
+    values = TABLES["random"]
+    u = np.random.default_rng(3).random((300_000, 2))
+    wi, _ = _core.sample_phase_table(values, WO, u)
+    mu = wi @ (-np.asarray(WO) / np.linalg.norm(WO))
+    nodes = np.linspace(-1, 1, len(values))
+    assert mu_chi2(mu, lambda m: np.interp(m, nodes, values)).passed(LEVEL)
+    bumped = values.copy()
+    bumped[np.argmax(values)] *= 1.1
+    assert not mu_chi2(mu, lambda m: np.interp(m, nodes, bumped)).passed(LEVEL)
+    means = 0.5 * (values[1:] + values[:-1])
+
+    def constant(m):
+        return means[np.clip(np.searchsorted(nodes, m) - 1, 0, len(means) - 1)]
+
+    assert not mu_chi2(mu, constant).passed(LEVEL)
 
 
 @pytest.mark.parametrize("name", TABLES)
@@ -137,6 +173,20 @@ def test_mie_optical_theorem(x):
     assert abs(q_ext - q_sca) < 2e-3 * q_ext, (q_ext, q_sca)
     np.testing.assert_allclose(s1[-1], s2[-1], rtol=1e-10)  # forward
     np.testing.assert_allclose(s1[0], -s2[0], rtol=1e-8, atol=1e-12)  # backward
+
+
+def test_mie_matches_bohren_and_huffmans_example():
+    """The worked example of Bohren & Huffman's BHMIE (1983, appendix A): a sphere of radius
+    0.525 um and refractive index 1.55 at 0.6328 um prints Q_sca = Q_ext = 3.10543 and
+    Q_back = 2.92534. A size parameter off by 3.5e-5 (x = 5.213 instead of 5.21282) already
+    moves Q_ext to 3.10500, so radius, wavelength and index conventions all show here."""
+    x = 2 * np.pi * 0.525 / 0.6328
+    mu = np.cos(np.linspace(0, np.pi, 40001))[::-1]
+    s1, s2 = mie_amplitudes(x, complex(1.55, 0), mu)
+    q_ext = 4 / x**2 * s1[-1].real
+    q_sca = 2 / x**2 * np.trapz(0.5 * (np.abs(s1) ** 2 + np.abs(s2) ** 2), mu)
+    q_back = 4 / x**2 * np.abs(s1[0]) ** 2
+    np.testing.assert_allclose([q_ext, q_sca, q_back], [3.10543, 3.10543, 2.92534], atol=6e-6)
 
 
 def test_mie_rayleigh_limit():
