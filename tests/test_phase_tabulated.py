@@ -7,7 +7,8 @@
 - Mitsuba ``tabphase`` convention: values at cos(theta) regularly spaced on [-1, 1], +1 the
   forward direction, piecewise-linear, auto-normalised (checked against a numpy reference).
 - Mie (Bohren & Huffman series): the optical theorem (Q_ext = Q_sca for a real index), the
-  Rayleigh limit for x << 1, S1 = S2 forward and S1 = -S2 backward, and a cloud-like <cos>.
+  Rayleigh limit for x << 1, S1 = S2 forward and S1 = -S2 backward, Bohren & Huffman's own
+  worked example, and a cloud-like <cos>. Each sampling test has a control that must fail.
 """
 
 from __future__ import annotations
