@@ -436,11 +436,12 @@ def test_an_emitter_a_medium_boundary_crosses_is_refused(tmp_path, capsys):
         assert code == 2 and not out.exists()
         err = capsys.readouterr().err.strip()  # one line naming the file, no traceback
         assert len(err.splitlines()) == 1 and "Traceback" not in err, err
-        assert err.startswith("pgi: error:") and "box.yaml: shapes[2] (back)" in err, err
+        assert err.startswith("pgi: error:") and "box.yaml (after override 'shapes[2]" in err
+        assert "): shapes[2] (back): a boundary of a medium crosses this emitter" in err, err
     scene = load_scene(tmp_path / "scene.yaml", ["shapes[2].emission=[1, 1, 1]"])
     native = build_native_scene(scene)
     # The wall is written in the included box.yaml, not in the scene file.
-    crosses = r"box.yaml: shapes\[2\] \(back\): a boundary of a medium crosses this emitter"
+    crosses = r"box.yaml \(after override .*\): shapes\[2\] \(back\): a boundary of a medium crosses"
     with pytest.raises(PgiError, match=crosses):
         emission_media(native, scene)
     out = tmp_path / "pt.exr"
