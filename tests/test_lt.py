@@ -441,7 +441,7 @@ def test_an_emitter_a_medium_boundary_crosses_is_refused(tmp_path, capsys):
     scene = load_scene(tmp_path / "scene.yaml", ["shapes[2].emission=[1, 1, 1]"])
     native = build_native_scene(scene)
     # The wall is written in the included box.yaml, not in the scene file.
-    crosses = r"box.yaml \(after override .*\): shapes\[2\] \(back\): a boundary of a medium crosses"
+    crosses = r"box.yaml \(after override .*\): shapes\[2\] \(back\): a boundary of a medium"
     with pytest.raises(PgiError, match=crosses):
         emission_media(native, scene)
     out = tmp_path / "pt.exr"
