@@ -214,6 +214,11 @@ def test_bad_scene_gives_one_line_error_and_no_output(tmp_path, kind):
             "expected comma-separated seconds, got '0.1,,0.2'",
         ),
         (["render", "cbox", "--method", "pt"], "required: -o/--output"),
+        # an option the command does not know points to that command's help
+        (
+            ["render", "cbox", "--method", "pt", "--bogus", "-o", "x.exr"],
+            "pgi render: error: unrecognized arguments: --bogus (see `pgi render --help`)",
+        ),
         (["render", "cbox", "--method", "pt", "--spp", "1.5", "-o", "x.exr"], "an integer"),
         # a section of the wrong type is a mistake, not an empty section
         (

@@ -292,6 +292,17 @@ def cmd_validate(args: argparse.Namespace) -> int:
 class _Parser(argparse.ArgumentParser):
     """Usage mistakes are one line, like every other error (the usage is in --help)."""
 
+    def parse_known_args(self, args=None, namespace=None):
+        # Options no command knows are left over here, at the top level, after a command
+        # parsed the rest: point to that command's help, where its options are.
+        parsed, extras = super().parse_known_args(args, namespace)
+        command = getattr(parsed, "command", None)
+        if extras and command is not None and self._subparsers is not None:
+            for action in self._subparsers._group_actions:
+                if isinstance(action, argparse._SubParsersAction) and command in action.choices:
+                    action.choices[command].error(f"unrecognized arguments: {' '.join(extras)}")
+        return parsed, extras
+
     def error(self, message: str):
         self.exit(2, f"{self.prog}: error: {message} (see `{self.prog} --help`)\n")
 

@@ -378,6 +378,10 @@ def _apply_override(doc: dict, text: str, origins: _Origins) -> None:
     Missing intermediate mappings are created; list items must exist."""
     key, sep, raw = text.partition("=")
     key = key.strip()
+    if sep and re.search(r"\[\s*-\s*\d+\s*\]", key):
+        raise PgiError(f"override {_describe(text)}: list indices count from 0 (none negative)")
+    if sep and re.search(r"\[\d{10,}\]", key):
+        raise PgiError(f"override {_describe(text)}: list index too large")
     if not sep or not _OVERRIDE_PATH.fullmatch(key):
         raise PgiError(f"override {_describe(text)}: expected key.path=value, e.g. film.width=64")
     tokens: list[str | int] = [
