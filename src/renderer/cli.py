@@ -292,15 +292,15 @@ def cmd_validate(args: argparse.Namespace) -> int:
 class _Parser(argparse.ArgumentParser):
     """Usage mistakes are one line, like every other error (the usage is in --help)."""
 
+    commands: dict[str, argparse.ArgumentParser] = {}  # the top level's, by name
+
     def parse_known_args(self, args=None, namespace=None):
         # Options no command knows are left over here, at the top level, after a command
         # parsed the rest: point to that command's help, where its options are.
         parsed, extras = super().parse_known_args(args, namespace)
-        command = getattr(parsed, "command", None)
-        if extras and command is not None and self._subparsers is not None:
-            for action in self._subparsers._group_actions:
-                if isinstance(action, argparse._SubParsersAction) and command in action.choices:
-                    action.choices[command].error(f"unrecognized arguments: {' '.join(extras)}")
+        command = self.commands.get(getattr(parsed, "command", None))
+        if extras and command is not None:
+            command.error(f"unrecognized arguments: {' '.join(extras)}")
         return parsed, extras
 
     def error(self, message: str):
@@ -313,6 +313,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"pgi {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
+    parser.commands = sub.choices  # filled as the commands are added below
 
     def scene_arg(p: argparse.ArgumentParser, method_params: bool = False) -> None:
         p.add_argument("scene", help="scene name, folder, or scene.yaml file")
