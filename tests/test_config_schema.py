@@ -449,13 +449,16 @@ def test_plan_refuses_a_variant_setting_that_method_args_would_override() -> Non
     make_plan({**GOOD, "variants": variant, "method_args": other}, ROOT)
 
 
-def test_config_text_that_yaml_11_reads_as_a_number_is_refused(tmp_path: Path) -> None:
+def test_config_text_that_yaml_11_reads_as_a_number_or_boolean_is_refused(tmp_path: Path) -> None:
     """The workflow reads configs as YAML 1.1, where `1:30` is 90 (sexagesimal) and `010` is
-    8 (octal): a budget of 90 s and seed 8 nobody wrote (found by fuzzing the configs)."""
+    8 (octal): a budget of 90 s and seed 8 nobody wrote (found by fuzzing the configs); `off`
+    is False, which the schema would call a wrong type though the text was meant."""
     from compare.plan import check_config_files
 
     for line, expect in (("budgets: [1, 1:30]", r"budgets\[1\]: '1:30' is read as 90"),
-                         ("seeds: [010]", r"seeds\[0\]: '010' is read as 8")):  # fmt: skip
+                         ("seeds: [010]", r"seeds\[0\]: '010' is read as 8"),
+                         ("methods: [pt, off]", r"methods\[1\]: 'off' is read as False.*quote it"),
+                         ):  # fmt: skip
         file = tmp_path / "c.yaml"
         file.write_text(f"scenes: [cbox]\n{line}\n")
         with pytest.raises(PlanError, match=expect):

@@ -606,7 +606,11 @@ def test_a_name_that_is_not_text_is_blamed_on_its_own_file(tmp_path):
 
 def test_lights_that_emit_nothing_do_not_count(tmp_path):
     path = write(tmp_path, BASE)
-    expect_error(path, "lights", "no light that emits", ["shapes[1].emission=0"])
+    expect_error(path, "shapes[1].emission", "this emitter is black and no other light emits",
+                 ["shapes[1].emission=0"])  # fmt: skip
+    doc = yaml.safe_load(yaml.safe_dump(BASE))
+    del doc["shapes"][1]["emission"]
+    expect_error(write(tmp_path, doc), "lights", r"the scene has no light that emits: add a")
 
 
 def test_scene_sources_are_every_file_a_scene_reads(tmp_path: Path) -> None:
@@ -891,6 +895,19 @@ def test_yaml_1_1_number_forms_are_not_read_silently(tmp_path, key, text):
     field = {"camera.fov": "fov: 40", "film.width": "width: 8"}[key]
     doc = yaml.safe_dump(BASE).replace(field, field.split(":")[0] + f": {text}")
     expect_error(write(tmp_path, doc, "file.yaml"), key, f"got '{text}'")
+
+
+def test_yaml_1_1_booleans_are_text(tmp_path):
+    """YAML 1.1 read `off` as False: a material named off was "expected a name, got False"."""
+    doc = yaml.safe_load(yaml.safe_dump(BASE))
+    doc["materials"] = {"off": doc["materials"]["white"]}
+    for shape in doc["shapes"]:
+        shape["material"] = "off"
+    text = yaml.safe_dump(doc).replace("'off'", "off")  # unquoted, as a person writes it
+    assert "material: off" in text
+    assert load_scene(write(tmp_path, text, "file.yaml")).shapes[0].material == "off"
+    expect_error(write(tmp_path, BASE), "camera.fov", "got true$", ["camera.fov=true"])
+    expect_error(write(tmp_path, BASE), "camera.fov", "got 'yes'", ["camera.fov=yes"])
 
 
 def test_a_scene_without_a_name_is_named_by_its_folder_however_it_is_given(tmp_path, monkeypatch):

@@ -58,25 +58,30 @@ def check_config_files(files: list[Path]) -> None:
             loose = yaml.safe_load(text)  # the same text, as YAML 1.1 reads it
         except yaml.YAMLError:
             continue  # the workflow's reader says so itself
-        for path, text, number in _numbers_only_yaml11_sees(strict, loose):
+        for path, text, value in _values_only_yaml11_sees(strict, loose):
+            remedy = (
+                "quote it if you mean the text (no config key takes a boolean)"
+                if isinstance(value, bool) else "write the number you mean"
+            )  # fmt: skip
             raise PlanError(
-                f"{file}: {format_path(path)}: {text!r} is read as {number} by the "
-                f"workflow's YAML 1.1 reader; write the number you mean"
+                f"{file}: {format_path(path)}: {text!r} is read as {value} by the "
+                f"workflow's YAML 1.1 reader; {remedy}"
             )
 
 
-def _numbers_only_yaml11_sees(
+def _values_only_yaml11_sees(
     strict: Any, loose: Any, path: tuple = ()
-) -> list[tuple[tuple, str, float]]:
-    """Leaves that YAML 1.2 reads as text and YAML 1.1 as a number (sexagesimal, octal)."""
+) -> list[tuple[tuple, str, float | bool]]:
+    """Leaves that YAML 1.2 reads as text and YAML 1.1 as a number (sexagesimal, octal) or a
+    boolean (yes, no, on, off)."""
     if isinstance(strict, dict) and isinstance(loose, dict):
         return [hit for k in strict if k in loose
-                for hit in _numbers_only_yaml11_sees(strict[k], loose[k], (*path, k))]  # fmt: skip
+                for hit in _values_only_yaml11_sees(strict[k], loose[k], (*path, k))]  # fmt: skip
     if isinstance(strict, list) and isinstance(loose, list) and len(strict) == len(loose):
         return [hit for i, (s, lo) in enumerate(zip(strict, loose, strict=True))
-                for hit in _numbers_only_yaml11_sees(s, lo, (*path, i))]  # fmt: skip
-    number = isinstance(loose, int | float) and not isinstance(loose, bool)
-    return [(path, strict, loose)] if number and isinstance(strict, str) else []
+                for hit in _values_only_yaml11_sees(s, lo, (*path, i))]  # fmt: skip
+    misread = isinstance(loose, int | float)  # bool is an int too
+    return [(path, strict, loose)] if misread and isinstance(strict, str) else []
 
 
 def number_as_text_hint(value: Any, expected: Any = "number") -> str:

@@ -146,14 +146,19 @@ class _UniqueKeyLoader(yaml.SafeLoader):
         return super().construct_mapping(node, deep=deep)
 
 
-# Numbers as YAML 1.2 reads them, not YAML 1.1 (PyYAML): 1e-3 is a number, not text; 1:20
-# is not 80 (base 60), 0100 not 64 (octal) and 1_000 not 1000 (digit groups), which a scene
-# would misread silently: they stay text, and the validator asks for a number.
+# Numbers and booleans as YAML 1.2 reads them, not YAML 1.1 (PyYAML): 1e-3 is a number, not
+# text; 1:20 is not 80 (base 60), 0100 not 64 (octal) and 1_000 not 1000 (digit groups), which
+# a scene would misread silently: they stay text, and the validator asks for a number. Only
+# true/false are booleans: `material: off` names a material "off", not False.
 _INT, _FLOAT = "tag:yaml.org,2002:int", "tag:yaml.org,2002:float"
+_BOOL = "tag:yaml.org,2002:bool"
 _UniqueKeyLoader.yaml_implicit_resolvers = {
-    first: [(tag, rx) for tag, rx in resolvers if tag not in (_INT, _FLOAT)]
+    first: [(tag, rx) for tag, rx in resolvers if tag not in (_INT, _FLOAT, _BOOL)]
     for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()
 }
+_UniqueKeyLoader.add_implicit_resolver(
+    _BOOL, re.compile(r"^(?:true|True|TRUE|false|False|FALSE)$"), list("tTfF")
+)
 _UniqueKeyLoader.add_implicit_resolver(
     _INT, re.compile(r"^[-+]?(?:0|[1-9][0-9]*|0x[0-9a-fA-F]+)$"), list("-+0123456789")
 )
@@ -1163,9 +1168,14 @@ def _load_scene(path: str | Path, overrides: Sequence[str]) -> Scene:
         val.fail(("lights",), f"expected a list of lights, got {_describe(lights_doc)}")
     lights = [_light(val, i, d) for i, d in enumerate(lights_doc)]
     if not any(map(_emits, lights)) and not any(s.emission and any(s.emission) for s in shapes):
+        # Point at the emitter written dark (often by an override) rather than at `lights`.
+        dark = [("shapes", i, "emission") for i, s in enumerate(shapes) if s.emission]
+        dark += [("lights", i) for i in range(len(lights))]
         val.fail(
-            ("lights",),
-            "the scene has no light that emits: add a light or give a shape a non-zero emission",
+            dark[0] if dark else ("lights",),
+            ("this emitter is black and no other light emits" if dark
+             else "the scene has no light that emits")
+            + ": add a light or give a shape a non-zero emission",  # fmt: skip
         )
 
     return Scene(
