@@ -610,7 +610,7 @@ def test_lights_that_emit_nothing_do_not_count(tmp_path):
                  ["shapes[1].emission=0"])  # fmt: skip
     doc = yaml.safe_load(yaml.safe_dump(BASE))
     del doc["shapes"][1]["emission"]
-    expect_error(write(tmp_path, doc), "lights", r"the scene has no light that emits: add a")
+    expect_error(write(tmp_path, doc), "lights", r"lights: no light emits: add a light")
 
 
 def test_scene_sources_are_every_file_a_scene_reads(tmp_path: Path) -> None:

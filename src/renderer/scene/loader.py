@@ -1171,11 +1171,10 @@ def _load_scene(path: str | Path, overrides: Sequence[str]) -> Scene:
         # Point at the emitter written dark (often by an override) rather than at `lights`.
         dark = [("shapes", i, "emission") for i, s in enumerate(shapes) if s.emission]
         dark += [("lights", i) for i in range(len(lights))]
+        what = "this emitter is black and no other light emits" if dark else "no light emits"
         val.fail(
             dark[0] if dark else ("lights",),
-            ("this emitter is black and no other light emits" if dark
-             else "the scene has no light that emits")
-            + ": add a light or give a shape a non-zero emission",  # fmt: skip
+            f"{what}: add a light or give a shape a non-zero emission",
         )
 
     return Scene(
