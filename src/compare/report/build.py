@@ -17,9 +17,9 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-import yaml
 
 from renderer.imageio import read_exr, read_json
+from renderer.scene.loader import check_yaml_file
 
 from .. import tables as T
 from ..metrics import EPS, relmse_map
@@ -197,7 +197,8 @@ def _about_scene(
     maps each study method to the `pgi methods` id it runs (a variant to its method)."""
     if not scene_file or not Path(scene_file).is_file():
         return ""
-    doc = yaml.safe_load(Path(scene_file).read_text()) or {}
+    read = check_yaml_file(Path(scene_file))  # as the renderer reads it (YAML 1.2)
+    doc = read[0] if read and isinstance(read[0], dict) else {}
     parts = ["<h2>About this scene</h2>"]
     if doc.get("description"):
         parts.append(f"<p>{e(' '.join(str(doc['description']).split()))}</p>")
