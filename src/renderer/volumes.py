@@ -306,6 +306,17 @@ def mie_largest_radius(effective_radius: float, effective_variance: float) -> fl
     return effective_radius * (1 + 8 * np.sqrt(effective_variance))
 
 
+def mie_droplet_radii(effective_radius: float, effective_variance: float,
+                      radii: int = 64) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """Radii (micrometres) and quadrature weights of the modified gamma distribution of
+    Hansen & Travis (1974, eq. 2.56), n(r) ~ r^((1 - 3v) / v) exp(-r / (a v)), whose
+    effective radius (the r^2-weighted mean radius) is a and effective variance v."""
+    a, v = effective_radius, effective_variance
+    r = np.linspace(0.05 * a, mie_largest_radius(a, v), radii)
+    weights = r ** ((1 - 3 * v) / v) * np.exp(-r / (a * v)) * np.gradient(r)
+    return r, weights
+
+
 @functools.lru_cache(maxsize=8)
 def mie_phase_table(effective_radius: float = 2.0, effective_variance: float = 0.1,
                     wavelength: float = 0.55, ior: float = 1.333,
@@ -313,17 +324,13 @@ def mie_phase_table(effective_radius: float = 2.0, effective_variance: float = 0
     """Mie phase function of water droplets at cos(theta) = linspace(-1, 1, resolution)
     (Mitsuba ``tabphase`` order: -1 backward .. +1 forward), normalised per steradian.
 
-    Radii (micrometres) follow the modified gamma distribution of Hansen & Travis (1974)
-    n(r) ~ r^((1 - 3v) / v) exp(-r / (a v)) with effective radius a and effective variance v;
-    the scattered intensity (|S1|^2 + |S2|^2) / 2 is averaged over it (number-weighted; the
+    Radii follow ``mie_droplet_radii`` (effective radius a, effective variance v); the
+    scattered intensity (|S1|^2 + |S2|^2) / 2 is averaged over them (number-weighted; the
     1/k^2 factor is the same for all radii at one wavelength). One wavelength for all RGB
     channels, since ``tabphase`` is not spectral in RGB variants.
     """
     mu = np.linspace(-1.0, 1.0, resolution)
-    a, v = effective_radius, effective_variance
-    r = np.linspace(0.05 * a, mie_largest_radius(a, v), radii)
-    weights = r ** ((1 - 3 * v) / v) * np.exp(-r / (a * v))
-    weights *= np.gradient(r)
+    r, weights = mie_droplet_radii(effective_radius, effective_variance, radii)
     intensity = np.zeros(resolution)
     for ri, wi in zip(r, weights, strict=True):
         s1, s2 = mie_amplitudes(2 * np.pi * ri / wavelength, complex(ior, 0.0), mu)
