@@ -288,6 +288,14 @@ def test_grid_density_matches_trilinear_reference(name):
     assert np.all(got[outside] == 0) and np.any(got[~outside] > 0)
 
 
+def test_grid_density_at_a_nan_point_is_zero():
+    """NaN is outside the grid: once it passed the bounds check and read far out of bounds."""
+    grid = GridRef(np.ones((2, 2, 2), np.float32), GRID_TRANSFORMS["unit"], 1.0)
+    p = np.array([[np.nan, 0.5, 0.5], [0.5, np.nan, 0.5], [0.5, 0.5, np.nan], [0.5, 0.5, 0.5]])
+    got = grid.scene.density(grid.id, p)
+    assert list(got[:3]) == [0, 0, 0] and got[3] > 0
+
+
 def test_grid_density_at_voxel_centres_equals_voxels():
     """Voxel (i, j, k) = density_zyx[k, j, i] sits at ((i, j, k) + 0.5) / res."""
     density = np.random.default_rng(3).random((3, 4, 5)).astype(np.float32)

@@ -127,6 +127,12 @@ def test_tabulated_chi2_rejects_a_slightly_wrong_table():
     assert not mu_chi2(mu, constant).passed(LEVEL)
 
 
+def test_tabulated_eval_of_a_nan_direction_stays_in_the_table():
+    """A NaN cosine once went through std::clamp to an out-of-bounds read."""
+    got = _core.eval_phase_table(TABLES["ramp"], WO, np.array([[np.nan, 0.0, 0.0]]))
+    assert got.shape == (1,)
+
+
 @pytest.mark.parametrize("name", TABLES)
 def test_tabulated_eval_matches_reference_and_integrates_to_one(name):
     values = TABLES[name]

@@ -56,7 +56,8 @@ struct DensityGrid {
     // cell's exact majorant, never an ulp above it (ratio tracking's 1 - sigma / maj
     // would turn negative).
     double density_local(const Vec3 &q) const {
-        if (q.x < 0 || q.y < 0 || q.z < 0 || q.x > 1 || q.y > 1 || q.z > 1) return 0;
+        // Written so that NaN fails it too: int(NaN) below would index far out of bounds.
+        if (!(q.x >= 0 && q.y >= 0 && q.z >= 0 && q.x <= 1 && q.y <= 1 && q.z <= 1)) return 0;
         double fx = q.x * nx - 0.5, fy = q.y * ny - 0.5, fz = q.z * nz - 0.5;
         double bx = std::floor(fx), by = std::floor(fy), bz = std::floor(fz);
         double tx = fx - bx, ty = fy - by, tz = fz - bz;
@@ -346,7 +347,9 @@ inline FreeFlight sample_free_flight(const Medium &m, const Vec3 &o, const Vec3 
     if (m.estimator == Estimator::RayMarch) {
         double target = exponential_depth(rng.next()), tau = 0;
         ray_march(m, o, d, tmax, rng, stats, [&](double s, double len, double sigma) {
-            if (tau + sigma * len < target) {
+            // An empty step never scatters, even for a depth target of exactly 0 (u = 0),
+            // which would otherwise put the collision at 0 / 0.
+            if (sigma <= 0 || tau + sigma * len < target) {
                 tau += sigma * len;
                 return true;
             }

@@ -40,7 +40,9 @@ public:
     }
     // Density per steradian at mu.
     double eval(double mu) const {
-        double x = std::clamp((mu + 1) / h_, 0.0, double(n_ - 1));
+        // Not std::clamp, which passes NaN through to int(x) and an out-of-bounds read.
+        double x = (mu + 1) / h_;
+        x = x >= 0 ? std::min(x, double(n_ - 1)) : 0.0;
         int i = std::min(int(x), n_ - 2);
         double t = x - i;
         return values_[i] * (1 - t) + values_[i + 1] * t;
