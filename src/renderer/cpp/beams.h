@@ -19,7 +19,8 @@
 // t_beam, so no beam is counted twice. Memory is bounded: at most `max_beams`
 // beams (more are dropped, in order, and counted) and `kPiecesPerBeam` pieces
 // per stored beam on average (pieces grow longer to stay within it): about
-// 80 + 16 * 72 + 16 * 32 / 2 bytes per beam at most.
+// 112 + 16 * 72 + 16 * 32 / 2 bytes per beam at most (a Beam is 112 bytes), and the
+// build's temporary arrays about as much again at their peak.
 // Visits follow the tree order, so sums over a query are deterministic.
 #pragma once
 
