@@ -37,9 +37,10 @@ from compare.plan import (  # noqa: E402
 
 # The default study, unless a config is given: a config of one's own must not inherit the
 # default study's folders and overrides (missing keys get the schema's defaults instead).
+DEFAULT_CONFIG = os.path.join(workflow.basedir, "configs", "default.yaml")
 if not workflow.overwrite_configfiles:
 
-    configfile: os.path.join(workflow.basedir, "configs", "default.yaml")
+    configfile: DEFAULT_CONFIG
 
 
 
@@ -49,7 +50,7 @@ CONFIG_FILES = ", ".join(str(f) for f in workflow.overwrite_configfiles) or "con
 if getattr(getattr(workflow, "config_settings", None), "config", None):
     CONFIG_FILES += " and --config"  # a key given there is in none of the files
 try:
-    check_config_files(workflow.overwrite_configfiles)
+    check_config_files(workflow.overwrite_configfiles or [DEFAULT_CONFIG])  # the default too
 except PlanError as e:
     sys.exit(f"config: {e}")
 try:

@@ -285,6 +285,21 @@ def test_config_numbers_as_text_and_repeated_keys_are_explained(study: Path) -> 
     assert "duplicate key 'methods'" in out[0]
 
 
+def test_the_default_config_is_read_strictly_too(tmp_path: Path) -> None:
+    """With no --configfile the Snakefile reads configs/default.yaml; that file gets the same
+    strict reading as a config given (found by a review: a repeated key passed unseen)."""
+    shutil.copy(SNAKEFILE, tmp_path / "Snakefile")
+    shutil.copytree(ROOT / "workflow", tmp_path / "workflow")
+    shutil.copytree(ROOT / "configs", tmp_path / "configs")
+    default = tmp_path / "configs" / "default.yaml"
+    default.write_text(default.read_text() + "seeds: [1]\n")
+    cmd = [sys.executable, "-m", "snakemake", "-s", str(tmp_path / "Snakefile"), "-n", "-c1"]
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    p = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True, env=env, timeout=600)
+    out = (p.stdout + p.stderr).strip().splitlines()
+    assert p.returncode != 0 and len(out) == 1 and "duplicate key 'seeds'" in out[0], out
+
+
 @pytest.mark.parametrize(
     "over,key",
     [
