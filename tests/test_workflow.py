@@ -211,8 +211,8 @@ def test_more_threads_than_cores_stops_before_any_job(study: Path) -> None:
 
 
 def test_analysis_code_is_an_input_of_the_analysis(study: Path) -> None:
-    """Comparisons, tables and report pages list the comparison code among their inputs, so
-    editing it reruns them (renders do not depend on it)."""
+    """Comparisons, reference merges (the reference's own error), tables and report pages list
+    the comparison code among their inputs, so editing it reruns them (renders do not)."""
     env = {"FAKE_PGI_METHODS": "pt,lt,sppm"}
     args = ["--configfile", "cfg.yaml", "-n", "--forceall", "--printshellcmds"]
     out = snakemake(study, *args, "--verbose", env=env).stdout
@@ -220,7 +220,8 @@ def test_analysis_code_is_an_input_of_the_analysis(study: Path) -> None:
     assert jobs
     for rule, body in jobs:
         has_code = "src/compare/metrics.py" in body
-        assert has_code == (rule in ("compare", "tables", "report_scene", "report_index")), rule
+        analysis = ("compare", "reference", "tables", "report_scene", "report_index")
+        assert has_code == (rule in analysis), rule
 
 
 def test_new_method_and_scene_render_only_what_is_new(study: Path) -> None:

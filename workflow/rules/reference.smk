@@ -29,6 +29,8 @@ rule reference:
     input:
         a=f"{R}/reference/{{scene}}/half0.exr",
         b=f"{R}/reference/{{scene}}/half1.exr",
+        # the reference's own error (ref.json) is computed by the analysis code
+        code=ANALYSIS_CODE,
     output:
         exr=f"{R}/reference/{{scene}}/ref.exr",
         json=f"{R}/reference/{{scene}}/ref.json",
