@@ -281,3 +281,47 @@ def test_a_signal_while_waiting_for_the_other_lanes_stops_them_before_it_is_rais
     method.lanes = lanes
     method.run_iteration(1)  # no interrupt left pending
     assert method.iterations == 1
+
+
+_SPOILED_RAY_BUFFERS = {
+    "float64-origins": lambda b: (b.origins.astype(np.float64), b.directions, b.tmax),
+    "fortran-directions": lambda b: (b.origins, np.asfortranarray(b.directions), b.tmax),
+    "float64-tmax": lambda b: (b.origins, b.directions, b.tmax.astype(np.float64)),
+}
+
+
+def _ray_writers(method_id: str) -> list:
+    """Every binding through which a method's kernels write rays into the caller's buffers,
+    as calls taking those three buffers."""
+    from renderer.methods import get_method
+
+    scene = load_small("cbox-fog", 8, 8)
+    method = get_method(method_id)(scene, seed=0, threads=1, params={})
+    if method_id == "pt":
+        lane = method.lanes[0]
+        return [lane.next_rays, lane.shadow_rays]
+    light = method.light_paths.kernel
+    writers = [lambda *b: light.begin_iteration(0, *b), light.next_rays]
+    kernel = method.kernel
+    if method_id == "lt":
+        return writers
+    if method_id == "ppb":
+        writers.append(lambda *b: kernel.begin_wave(0, *b))
+    else:
+        writers.append(lambda *b: kernel.begin_camera(0, *b))
+    if hasattr(kernel, "shadow_rays"):
+        writers.append(kernel.shadow_rays)
+    return [*writers, kernel.next_rays]
+
+
+@pytest.mark.parametrize("spoil", list(_SPOILED_RAY_BUFFERS))
+@pytest.mark.parametrize("method_id", ["pt", "lt", "pm", "ppb"])
+def test_ray_buffers_the_kernels_write_are_never_silently_copied(method_id, spoil):
+    """A kernel writes its rays into the caller's buffers: a buffer of another dtype or
+    layout must be refused, not converted into a copy that is written and thrown away."""
+    from renderer.tracer import RayBatch
+
+    batch = RayBatch(1 << 16)
+    for write in _ray_writers(method_id):
+        with pytest.raises(TypeError, match="incompatible function arguments"):
+            write(*_SPOILED_RAY_BUFFERS[spoil](batch))

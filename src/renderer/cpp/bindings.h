@@ -21,6 +21,7 @@
 namespace pgi::bind {
 
 namespace nb = nanobind;
+using namespace nb::literals;
 
 using V3 = std::array<double, 3>;
 template <typename T>
@@ -126,7 +127,7 @@ void def_shadow_passes(nb::class_<Kernel> &cls) {
             [](Kernel &k, Array<float> o, Array<float> d, Array<float> t) {
                 RayBuffers b = ray_buffers(o, d, t);
                 return released([&] { return k.shadow_rays(b); });
-            })
+            }, "o"_a.noconvert(), "d"_a.noconvert(), "t"_a.noconvert())
         .def("resolve_shadows",
              [](Kernel &k, Array<float> tfar, Array<int32_t> prim) {
                  check_len(tfar.shape(0), prim.shape(0), "tfar");

@@ -76,6 +76,9 @@ struct LightVertex {
     bool after_specular = false;  // the previous real event was a delta BSDF (caustic light)
 };
 
+// Depths are stored in 16 bits: the loader keeps min(rr_depth, bounded max_depth) <= 10000
+// and roulette lets a path on with probability at most 0.95 after rr_depth, so a path of
+// 32767 events has a probability under 0.95^22767, about 1e-507.
 struct LightSegment {
     Vec3 origin, dir;        // dir unit
     double length = 0;       // to the sampled collision, or t_surface when none was sampled

@@ -106,7 +106,7 @@ void bind_lt(nb::module_ &m) {
                  RayBuffers b = ray_buffers(o, d, t);
                  check_len(b.capacity, lp.capacity(), "ray buffers");
                  return released([&] { return lp.begin_iteration(it, b); });
-             })
+             }, "iteration"_a, "o"_a.noconvert(), "d"_a.noconvert(), "t"_a.noconvert())
         .def("scatter",
              [](LightPathTracer &lp, Array<float> tfar, Array<int32_t> prim, Array<float> u, Array<float> v) {
                  Hits h = hits_of(tfar, prim, u, v);
@@ -116,7 +116,7 @@ void bind_lt(nb::module_ &m) {
              [](LightPathTracer &lp, Array<float> o, Array<float> d, Array<float> t) {
                  RayBuffers b = ray_buffers(o, d, t);
                  return released([&] { return lp.next_rays(b); });
-             })
+             }, "o"_a.noconvert(), "d"_a.noconvert(), "t"_a.noconvert())
         .def("vertices", [](const LightPathTracer &lp) { return vertex_arrays(lp.vertices()); })
         .def("segments", [](const LightPathTracer &lp) { return segment_arrays(lp.segments()); })
         .def_prop_ro("vertex_count", [](const LightPathTracer &lp) { return lp.vertices().size(); })

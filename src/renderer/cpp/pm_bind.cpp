@@ -69,7 +69,7 @@ void bind_pm(nb::module_ &m) {
              [](PhotonGatherer &g, int64_t it, Array<float> o, Array<float> d, Array<float> t) {
                  RayBuffers b = ray_buffers(o, d, t);
                  return released([&] { return g.begin_camera(it, b); });
-             })
+             }, "iteration"_a, "o"_a.noconvert(), "d"_a.noconvert(), "t"_a.noconvert())
         .def("shade",
              [](PhotonGatherer &g, Array<float> tfar, Array<int32_t> prim, Array<float> u, Array<float> v,
                 double surface_radius, double volume_radius) {
@@ -80,7 +80,7 @@ void bind_pm(nb::module_ &m) {
              [](PhotonGatherer &g, Array<float> o, Array<float> d, Array<float> t) {
                  RayBuffers b = ray_buffers(o, d, t);
                  return released([&] { return g.next_rays(b); });
-             })
+             }, "o"_a.noconvert(), "d"_a.noconvert(), "t"_a.noconvert())
         .def("end_iteration", &PhotonGatherer::end_iteration, nb::call_guard<nb::gil_scoped_release>())
         .def("image", [](const PhotonGatherer &g) { return film_image(g.film()); })
         .def_prop_ro("samples_per_pixel", [](const PhotonGatherer &g) { return g.film().samples_per_pixel; })

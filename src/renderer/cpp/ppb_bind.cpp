@@ -93,7 +93,7 @@ void bind_ppb(nb::module_ &m) {
                  RayBuffers b = ray_buffers(o, d, t);
                  check_len(b.capacity, pb.capacity(), "ray buffers");
                  return released([&] { return pb.begin_wave(it, b); });
-             })
+             }, "iteration"_a, "o"_a.noconvert(), "d"_a.noconvert(), "t"_a.noconvert())
         .def("shade",
              [](PhotonBeams &pb, Array<float> tfar, Array<int32_t> prim, Array<float> u, Array<float> v) {
                  Hits h = hits_of(tfar, prim, u, v);
@@ -103,7 +103,7 @@ void bind_ppb(nb::module_ &m) {
              [](PhotonBeams &pb, Array<float> o, Array<float> d, Array<float> t) {
                  RayBuffers b = ray_buffers(o, d, t);
                  return released([&] { return pb.next_rays(b); });
-             })
+             }, "o"_a.noconvert(), "d"_a.noconvert(), "t"_a.noconvert())
         .def("end_wave", &PhotonBeams::end_wave, nb::call_guard<nb::gil_scoped_release>())
         .def("image", [](const PhotonBeams &pb) { return film_image(pb.film()); })
         .def_prop_ro("samples_per_pixel", [](const PhotonBeams &pb) { return pb.film().samples_per_pixel; })

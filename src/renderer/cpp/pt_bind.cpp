@@ -19,7 +19,7 @@ void bind_pt(nb::module_ &m) {
         .def("next_rays", [](PathTracerLane &lane, Array<float> o, Array<float> d, Array<float> t) {
             RayBuffers b = ray_buffers(o, d, t);
             return released([&] { return lane.next_rays(b); });
-        });
+        }, "o"_a.noconvert(), "d"_a.noconvert(), "t"_a.noconvert());
 
     nb::class_<PathTracer>(m, "PathTracer")
         .def(nb::init<std::shared_ptr<const Scene>, int, int, uint64_t, int, int, int>(), "scene"_a, "max_depth"_a,
