@@ -8,6 +8,7 @@
 # See docs/workflow.md. Nothing below names a scene or a method: they come from the config
 # (methods: all = whatever `pgi methods` lists).
 
+import importlib.util
 import os
 import shlex
 import sys
@@ -26,6 +27,18 @@ if SRC not in sys.path:
 os.environ["PYTHONPATH"] = os.pathsep.join(
     [SRC] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p and p != SRC]
 )
+
+# An editable install of another checkout in the same environment would be imported before
+# this one's src (its import hook comes first): stop rather than run that checkout's code.
+for _package in ("compare", "renderer"):
+    _spec = importlib.util.find_spec(_package)
+    _found = os.path.dirname(os.path.realpath(_spec.origin)) if _spec and _spec.origin else None
+    if _found != os.path.realpath(os.path.join(SRC, _package)):
+        sys.exit(
+            f"pgi: this Python ({sys.executable}) imports `{_package}` from {_found or 'nowhere'}, "
+            f"not from this checkout's {SRC}: set this checkout up (./setup.sh --no-run) and "
+            "run the snakemake of its own .venv"
+        )
 
 from compare.plan import (  # noqa: E402
     PlanError,

@@ -292,6 +292,7 @@ def test_the_default_config_is_read_strictly_too(tmp_path: Path) -> None:
     shutil.copy(SNAKEFILE, tmp_path / "Snakefile")
     shutil.copytree(ROOT / "workflow", tmp_path / "workflow")
     shutil.copytree(ROOT / "configs", tmp_path / "configs")
+    (tmp_path / "src").symlink_to(ROOT / "src")  # the packages it imports are this checkout's
     default = tmp_path / "configs" / "default.yaml"
     default.write_text(default.read_text() + "seeds: [1]\n")
     cmd = [sys.executable, "-m", "snakemake", "-s", str(tmp_path / "Snakefile"), "-n", "-c1"]
@@ -475,3 +476,19 @@ def test_scene_page_gets_each_variants_method_and_one_seeds_images(dry_run: str)
     assert spec["bases"] == {"pt": "pt", "lt": "lt", "pt-delta": "pt"}
     assert spec["seed"] == 3
     assert all(f"/s{spec['seed']}/" in p for ps in spec["snapshots"].values() for p in ps)
+
+
+def test_another_checkouts_installation_is_refused(tmp_path: Path) -> None:
+    """A checkout whose environment imports another checkout's packages (an editable
+    install's import hook comes before the Snakefile's src) stops with one line, naming both,
+    before it runs any of the other checkout's code."""
+    for part in ("Snakefile", "workflow", "configs", "scenes"):
+        (tmp_path / part).symlink_to(ROOT / part)
+    shutil.copytree(ROOT / "src", tmp_path / "src", ignore=shutil.ignore_patterns("__pycache__"))
+    cmd = [sys.executable, "-m", "snakemake", "-s", str(tmp_path / "Snakefile"), "-n", "-c1"]
+    env = {**os.environ, "PYTHONPATH": ""}
+    p = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True, env=env, timeout=600)
+    out = (p.stdout + p.stderr).strip().splitlines()
+    assert p.returncode != 0 and len(out) == 1, out
+    assert f"imports `compare` from {ROOT / 'src' / 'compare'}" in out[0], out
+    assert str(tmp_path / "src") in out[0], out
