@@ -74,6 +74,8 @@ def test_bad_config_rejected(change: dict, expect: str) -> None:
         ({"methods": "some"}, "methods: 'some' is not one of ['all'] (methods may also be a list)"),
         ({"methods": ["p t"]}, "methods[0]: 'p t' does not match"),
         ({"budgets": ["5e-1"]}, "write 0.5)"),
+        ({"budgets": ["1e-9"]}, "write 1.0e-09)"),  # 1e-09 is text in YAML 1.1 too
+        ({"budgets": ["2e20"]}, "write 2.0e+20)"),
         (
             {"budgets": ["1"]},
             "budgets[0]: '1' is not of type 'number' (it is text: in a config file write 1 "
@@ -486,3 +488,11 @@ def test_plan_refuses_method_parameters_in_a_scene_set(
     cfg = {**GOOD, "scenes_dir": str(_scenes(tmp_path)), "pgi": _fake_pgi(tmp_path), **change}
     with pytest.raises(PlanError, match=expect):
         make_plan(cfg, tmp_path, check_scenes=False)
+
+
+@pytest.mark.parametrize("number", [1e-9, 2e20, -3e-5, 1.5e300, 0.5, 123456.0, 1000, 5e-324])
+def test_the_spelling_a_hint_suggests_is_a_number_in_yaml_11(number: float) -> None:
+    """The remedy a hint gives must itself be read as the number by the workflow's reader."""
+    from compare.plan import yaml11_spelling
+
+    assert yaml.safe_load(yaml11_spelling(number)) == number

@@ -104,6 +104,7 @@ def number_as_text_hint(value: Any, expected: Any = "number") -> str:
         number = int(number)  # 1.0e3 -> 1000, which fits an integer key too
     if expected == "integer" and not isinstance(number, int):
         return ""
+    spelled = yaml11_spelling(number)
     try:  # text that YAML 1.1 itself reads as a number was quoted
         quoted = not isinstance(yaml.safe_load(value), str)
     except yaml.YAMLError:
@@ -112,13 +113,27 @@ def number_as_text_hint(value: Any, expected: Any = "number") -> str:
         # Quoted in a file, or a list item given with snakemake's --config, which reads them
         # all as text: the remedy differs, so both are said.
         return (
-            f" (it is text: in a config file write {number!r} without quotes; snakemake's "
+            f" (it is text: in a config file write {spelled} without quotes; snakemake's "
             "--config reads list items as text, so give lists in a config file)"
         )
     return (
         f" (the workflow reads configs as YAML 1.1, where {value} is text, not a number: "
-        f"write {number!r})"
+        f"write {spelled})"
     )
+
+
+def yaml11_spelling(number: int | float) -> str:
+    """How to write a number so that YAML 1.1 reads it as one: its float needs a dot in the
+    mantissa and a sign in the exponent (1e-09 is text there, 1.0e-09 a number)."""
+    text = repr(number)
+    if isinstance(number, float) and "e" in text:
+        mantissa, exponent = text.split("e")
+        if "." not in mantissa:
+            mantissa += ".0"
+        if exponent[0] not in "+-":
+            exponent = "+" + exponent
+        text = f"{mantissa}e{exponent}"
+    return text
 
 
 # How a schema type reads in a message.
