@@ -76,6 +76,20 @@ def test_time_to_error() -> None:
     assert math.isnan(time_to_error(t, [1, 1, 1], 0.1)[0])
 
 
+def test_time_to_error_extrapolates_only_from_enough_budgets() -> None:
+    """Two budgets (the tiny study's) give a line whatever their noise: no extrapolation,
+    so the table says what was measured (a bound) instead of a time from that line."""
+    t, e = np.array([0.5, 1.0]), np.array([0.1, 0.05])
+    assert math.isnan(time_to_error(t, e, 0.01)[0])
+    assert bounded(time_to_error(t, e, 0.04), t, e, 0.04) == (1.0, False, ">=")
+    assert time_to_error(t, e, 0.005**0.5) == (pytest.approx(2**0.5 / 2), False)  # measured
+    # budgets 1, 2 and 4 whose first snapshot came late (3.995x in time) still extrapolate
+    late = np.array([1.0013, 2.0, 4.0])
+    got, extrap = time_to_error(late, [0.1, 0.05, 0.025], 0.02, budgets=[1, 2, 4])
+    assert extrap and got > 4.0
+    assert math.isnan(time_to_error(late, [0.1, 0.05, 0.025], 0.02)[0])
+
+
 def test_time_to_error_never_contradicts_the_measurements() -> None:
     t = [1.0, 2.0, 4.0, 8.0]
     # never reached: extrapolated from the last point, so after it (the fit through all the

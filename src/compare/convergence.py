@@ -96,7 +96,11 @@ def fit_slope_above_floor(
 
 
 def time_to_error(
-    times: Sequence[float], errors: Sequence[float], target: float, extrapolate: bool = True
+    times: Sequence[float],
+    errors: Sequence[float],
+    target: float,
+    extrapolate: bool = True,
+    budgets: Sequence[float] | None = None,
 ) -> tuple[float, bool]:
     """Time at which a (mean) error curve first reaches ``target``.
 
@@ -105,15 +109,17 @@ def time_to_error(
     ``extrapolate`` and the fitted slope is negative, the fitted slope is followed from the
     nearest measured point: back from the first point when the curve starts at or below the
     target (the time is then at most the first time), on from the last point when it never
-    gets there (at least the last time). Returns ``(time, extrapolated)``; ``(nan, True)``
-    when no estimate is possible.
+    gets there (at least the last time). A slope is fitted only to points of enough_budgets
+    (``budgets``, each point's, default ``times``): through two points any noise is a slope.
+    Returns ``(time, extrapolated)``; ``(nan, True)`` when no estimate is possible.
     """
     t = np.asarray(times, dtype=np.float64)
     e = np.asarray(errors, dtype=np.float64)
+    b = t if budgets is None else np.asarray(budgets, dtype=np.float64)
     order = np.argsort(t)
-    t, e = t[order], e[order]
+    t, e, b = t[order], e[order], b[order]
     ok = (t > 0) & (e > 0) & np.isfinite(e)
-    t, e = t[ok], e[ok]
+    t, e, b = t[ok], e[ok], b[ok]
     if t.size == 0 or not target > 0:
         return math.nan, True
     lt, le, lg = np.log10(t), np.log10(e), math.log10(target)
@@ -125,7 +131,7 @@ def time_to_error(
             i = int(reached[0])
             f = (le[i - 1] - lg) / (le[i - 1] - le[i])
             return float(10 ** (lt[i - 1] + f * (lt[i] - lt[i - 1]))), False
-    if not extrapolate:
+    if not extrapolate or not enough_budgets(b):
         return math.nan, True
     fit = fit_slope(t, e)
     if not fit.slope < 0:

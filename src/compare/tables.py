@@ -283,7 +283,8 @@ def time_to_error_table(summary: pd.DataFrame, metric: str, baseline: str) -> pd
         for method, dm in d.groupby("method", sort=True):
             t_col = render_time(dm, "render_seconds_mean")
             t, e = t_col.to_numpy(), dm[col].to_numpy()
-            times[method] = bounded(time_to_error(t, e, target), t, e, target)
+            estimate = time_to_error(t, e, target, budgets=dm.budget.to_numpy())
+            times[method] = bounded(estimate, t, e, target)
         t_base, _, base_bound = times.get(baseline, (math.nan, True, ""))
         for method, (t, extrap, bound) in times.items():
             rows.append(

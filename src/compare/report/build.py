@@ -340,9 +340,9 @@ def build_scene_page(spec: dict[str, Any]) -> None:
                 body.append(
                     f'<p class="note">Target: {e(_metric_label(ts.metric.iloc[0]))} = '
                     f"{T.fmt(ts.target.iloc[0])} ({e(str(ts.target_from.iloc[0]))}); "
-                    "extrapolated = beyond the measured budgets, from the fitted slope (at most "
-                    "4x outside them); bound = only known to be reached by the first budget (≤) "
-                    "or not by the last (≥).</p>"
+                    "extrapolated = beyond the measured budgets, from the fitted slope (with three "
+                    "budgets or more spanning 4x; at most 4x outside them); bound = only known "
+                    "to be reached by the first budget (≤) or not by the last (≥).</p>"
                 )
             shown = ts.drop(columns=["metric", "target", "target_from"])
             for col in ("bound", "speedup_bound"):  # as the index writes them
@@ -543,7 +543,8 @@ def build_index(spec: dict[str, Any]) -> None:
             f"{e(baseline)} at its largest budget (⚠ where that cell is flagged: the target "
             "then lies near the reference's own error, and the times to reach it say little). "
             "Seconds of render time, interpolated log-log between budgets; "
-            "* = extrapolated from the fitted slope (at most 4x outside the measured times; "
+            "* = extrapolated from the fitted slope (with three budgets or more spanning 4x; "
+            "at most 4x outside the measured times; "
             "beyond that ≤ first budget or ≥ last budget, as measured). "
             "Speed-up = baseline time / method time. A method marked ≤ had beaten the target "
             "at its first snapshot already, and its true time may be far lower: such a bound "
