@@ -366,6 +366,10 @@ def build_scene_page(spec: dict[str, Any]) -> None:
             [int(round(255 * c)) for c in row]
             for row in I.false_colour(np.logspace(math.log10(lo), math.log10(hi), 256), lo, hi)
         ],
+        "film": [int(ref.shape[1]), int(ref.shape[0])],
+        # each image's relMSE at full size, as the tables have it: the viewer's own map (and a
+        # mean of it) is of the downsampled, 8-bit-mantissa images
+        "relmse": {m: {b: float(np.mean(x)) for b, x in d.items()} for m, d in err.items()},
         "reference": I.b64(I.encode_rgbe(ref_v)),
         # when each image shown was taken: the viewer marks those off budget as the grid does
         "seconds": {
