@@ -210,18 +210,67 @@ def test_more_threads_than_cores_stops_before_any_job(study: Path) -> None:
     assert f"threads: {too_many} is more than this machine's" in p.stdout + p.stderr
 
 
-def test_analysis_code_is_an_input_of_the_analysis(study: Path) -> None:
-    """Comparisons, reference merges (the reference's own error), tables and report pages list
-    the comparison code among their inputs, so editing it reruns them (renders do not)."""
+def _job_inputs(study: Path) -> list[tuple[str, str]]:
+    """(rule, its job's text in a verbose forced dry run) for every job of the fake study."""
     env = {"FAKE_PGI_METHODS": "pt,lt,sppm"}
     args = ["--configfile", "cfg.yaml", "-n", "--forceall", "--printshellcmds"]
     out = snakemake(study, *args, "--verbose", env=env).stdout
     jobs = re.findall(r"rule (\w+):\n(.*?)(?:\n\n|\Z)", out, re.S)
     assert jobs
-    for rule, body in jobs:
-        has_code = "src/compare/metrics.py" in body
-        analysis = ("compare", "reference", "tables", "report_scene", "report_index")
-        assert has_code == (rule in analysis), rule
+    return jobs
+
+
+def test_analysis_code_is_an_input_of_the_analysis(study: Path) -> None:
+    """Each analysis step lists the comparison code it runs among its inputs, so editing it
+    reruns that step and what follows (renders do not depend on it): the metrics rerun
+    comparisons, reference merges (the reference's own error), tables and pages; the tables'
+    code the tables and pages; the report's code the pages alone."""
+    runs = {
+        "src/compare/metrics.py": {
+            "compare",
+            "reference",
+            "tables",
+            "report_scene",
+            "report_index",
+        },
+        "src/compare/tables.py": {"tables", "report_scene", "report_index"},
+        "src/compare/report/build.py": {"report_scene", "report_index"},
+        "src/compare/report/assets/viewer.js": {"report_scene", "report_index"},
+    }
+    for rule, body in _job_inputs(study):
+        for code, rules in runs.items():
+            assert (code in body) == (rule in rules), (rule, code)
+
+
+def test_analysis_steps_import_only_the_code_they_list(study: Path) -> None:
+    """The code a step lists is what its job imports: each analysis job is rerun with Python
+    reporting its imports (into the job's log), and every `compare` module imported must be
+    among that job's inputs; else an edit of it would not rerun the step."""
+    inputs: dict[str, set[str]] = {}
+    for rule, body in _job_inputs(study):
+        found = re.search(r"input: (.*)", body)
+        inputs.setdefault(rule, set()).update(found[1].split(", ") if found else ())
+    analysis = ["compare", "reference", "tables", "report_scene", "report_index"]
+    env = {"FAKE_PGI_METHODS": "pt,lt,sppm", "PYTHONPROFILEIMPORTTIME": "1"}
+    snakemake(study, "--configfile", "cfg.yaml", "--forcerun", *analysis, env=env)
+    logs = {
+        "compare": study.glob("results/logs/compare/*/*/*.log"),
+        "reference": study.glob("results/logs/reference/*/merge.log"),
+        "tables": [study / "results" / "logs" / "tables.log"],
+        "report_scene": study.glob("results/logs/report/*.log"),
+    }
+    for rule, files in logs.items():
+        files = list(files)
+        assert files, rule
+        for log in files:
+            modules = re.findall(
+                r"import time:.*\|\s+(compare(?:\.\w+)*)\s*$", log.read_text(), re.M
+            )
+            assert "compare" in modules, (rule, log)  # compare.steps runs as __main__
+            for module in modules:
+                path = "src/" + module.replace(".", "/")
+                files = (f"{path}.py", f"{path}/__init__.py")
+                assert any(i.endswith(files) for i in inputs[rule]), (rule, module)
 
 
 def test_new_method_and_scene_render_only_what_is_new(study: Path) -> None:

@@ -48,9 +48,17 @@ def scene_digest(wildcards):
     return _scene_digest(wildcards.scene)
 
 
-# The analysis code: editing it reruns comparisons, tables and the report (cheap steps);
-# renderer code does not rerun renders (see docs/workflow.md).
-ANALYSIS_CODE = sorted(
+# The analysis code: editing it reruns the steps that run it and what follows them (cheap
+# steps); renderer code does not rerun renders (see docs/workflow.md). Each step lists the
+# modules `compare.steps` imports for it (a test checks them against what the jobs import).
+def _compare_code(*modules):
+    files = ("__init__.py", "steps.py", *modules)
+    return sorted(_relative(Path(SRC, "compare", f)) for f in files)
+
+
+MERGE_CODE = _compare_code("runs.py", "metrics.py")  # compare-run, merge-reference
+TABLE_CODE = _compare_code("tables.py", "convergence.py", "metrics.py")
+ANALYSIS_CODE = sorted(  # the report pages: all of it
     _relative(p)
     for p in Path(SRC, "compare").rglob("*")
     if p.suffix in (".py", ".css", ".js") and "__pycache__" not in p.parts

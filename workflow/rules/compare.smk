@@ -6,7 +6,7 @@ rule compare:
         snapshots=lambda w: snapshot_files(w.scene, w.method, w.seed),
         ref=f"{R}/reference/{{scene}}/ref.exr",
         ref_json=f"{R}/reference/{{scene}}/ref.json",
-        code=ANALYSIS_CODE,
+        code=MERGE_CODE,
     output:
         f"{R}/metrics/{{scene}}/{{method}}/s{{seed}}.csv",
     params:
@@ -28,7 +28,7 @@ rule tables:
     input:
         metrics=[metrics_file(*r) for r in all_runs()],
         benchmarks=[bench_file(*r) for r in all_runs()],
-        code=ANALYSIS_CODE,
+        code=TABLE_CODE,
     output:
         summary=f"{REP}/tables/summary.csv",
         runs=f"{REP}/tables/runs.csv",

@@ -30,7 +30,7 @@ rule reference:
         a=f"{R}/reference/{{scene}}/half0.exr",
         b=f"{R}/reference/{{scene}}/half1.exr",
         # the reference's own error (ref.json) is computed by the analysis code
-        code=ANALYSIS_CODE,
+        code=MERGE_CODE,
     output:
         exr=f"{R}/reference/{{scene}}/ref.exr",
         json=f"{R}/reference/{{scene}}/ref.json",
