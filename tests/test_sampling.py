@@ -1,8 +1,10 @@
-"""Statistical tests of BSDF and phase-function sampling (the native probes of renderer._core).
+"""Statistical tests of BSDF, phase-function and emission-warp sampling (the native probes of
+renderer._core).
 
 Each sampler is checked against the density it reports with a chi-square test over the sphere
 (tests/stats.py); the densities themselves are checked against independent closed forms and
-for normalisation. Delta BSDFs are checked exactly (mirror and Snell directions, Fresnel
+for normalisation. The warps light emission uses (a spot's cone, a directional light's disk)
+are checked the same way. Delta BSDFs are checked exactly (mirror and Snell directions, Fresnel
 probabilities). Every random number comes from a fixed seed, so results are reproducible.
 """
 
@@ -45,6 +47,10 @@ DIELECTRIC_CASES = [  # (ior, cos of wo to the normal: > 0 outside, < 0 inside)
     (1 / 1.33, 0.6), (1 / 1.33, 0.3),  # an interface whose interior is less dense
 ]  # fmt: skip
 WO_PHASE = tuple(unit((0.3, -0.5, 0.8)))
+CONE_CASES = [  # (axis, cos of the cutoff angle): a half space down to a narrow spot
+    ((0, 0, 1), 0.0), (tuple(unit((0.4, -0.7, 0.2))), 0.5), ((0, -1, 0), 0.8),
+    (tuple(unit((-0.3, 0.1, -0.9))), 0.95), ((1, 0, 0), -0.5),
+]  # fmt: skip
 
 # Statistical hypothesis tests in this file, for the Sidak correction of the level each uses.
 N_TESTS = (
@@ -54,6 +60,8 @@ N_TESTS = (
     + len(HG_G)  # HG cos(theta) chi-square
     + (len(HG_G) + 1)  # mean cosine t-tests
     + 1  # hemisphere-domain chi-square
+    + 2 * len(CONE_CASES)  # cone chi-square over the sphere and of cos(theta)
+    + 1  # disk chi-square
 )
 LEVEL = stats.sidak(stats.ALPHA, N_TESTS)
 
@@ -401,4 +409,177 @@ def test_hemisphere_domain():
     assert stats.chi2_test(domain.histogram(wi), mass * len(wi)).passed(LEVEL)
     wi[0] = (0.0, -0.5, np.sqrt(0.75))
     result = stats.chi2_test(domain.histogram(wi), mass * len(wi))
+    assert not result.passed(LEVEL) and "zero expected" in result.reason
+
+
+# --------------------------------------------------------------------------- cone and disk
+# The warps of sampling.h behind emission: a spot light's directions (uniform in solid angle in
+# its cutoff cone) and a directional light's starting points (uniform on a disk).
+
+
+def cone_pdf(axis, cos_cutoff: float):
+    """Uniform per steradian inside the cone, 0 outside."""
+    a = unit(axis)
+
+    def pdf(d: np.ndarray) -> np.ndarray:
+        return np.where(d @ a >= cos_cutoff, 1 / (2 * math.pi * (1 - cos_cutoff)), 0.0)
+
+    return pdf
+
+
+def cone_angle_uniform_pdf(axis, cos_cutoff: float):
+    """A wrong density for the controls: uniform in the angle theta to the axis instead of in
+    solid angle, 1 / (theta_max 2 pi sin(theta)) per steradian."""
+    a, theta_max = unit(axis), math.acos(cos_cutoff)
+
+    def pdf(d: np.ndarray) -> np.ndarray:
+        z = np.clip(d @ a, -1.0, 1.0)
+        sin = np.sqrt(np.maximum(1 - z * z, 1e-300))
+        return np.where(z >= cos_cutoff, 1 / (theta_max * 2 * math.pi * sin), 0.0)
+
+    return pdf
+
+
+def sample_cone_dirs(axis, cos_cutoff: float, seed: int, exponent: float = 1.0):
+    """The native cone warp, fed u1^exponent (1: the uniforms the renderer draws; otherwise a
+    control's wrong input)."""
+
+    def sample(n: int) -> np.ndarray:
+        u = np.random.default_rng(seed).random((n, 2))
+        u[:, 0] **= exponent
+        d, pdf = _core.sample_uniform_cone(tuple(axis), cos_cutoff, u)
+        np.testing.assert_allclose(pdf, 1 / (2 * math.pi * (1 - cos_cutoff)), rtol=1e-14)
+        return d
+
+    return sample
+
+
+def uniform_cos_cdf(cos_cutoff: float):
+    """CDF of cos(theta) for directions uniform in solid angle in the cone."""
+    return lambda x: np.clip((x - cos_cutoff) / (1 - cos_cutoff), 0.0, 1.0)
+
+
+def cone_cos_chi2(d: np.ndarray, axis, cos_cutoff: float, cdf) -> stats.Chi2Result:
+    """cos(theta) to the axis in 100 equal bins over [cos_cutoff, 1] against `cdf`: finer than
+    the sphere's rings, of which a narrow cone covers one."""
+    edges = np.linspace(cos_cutoff, 1.0, 101)
+    edges[-1] = 1 + 1e-12  # cos(theta) = 1 is inside
+    return stats.chi2_1d(d @ unit(axis), edges, cdf)
+
+
+def cone_domain(axis) -> stats.SphericalDomain:
+    # z edges every 0.05: each case's cutoff lies on one, as the density's discontinuity should.
+    return stats.SphericalDomain(axis=tuple(unit(axis)), res_z=40, res_phi=40)
+
+
+@pytest.mark.parametrize("axis,cos_cutoff", CONE_CASES)
+def test_uniform_cone_sampling_chi2(axis, cos_cutoff):
+    sample = sample_cone_dirs(axis, cos_cutoff, seed=7000 + CONE_CASES.index((axis, cos_cutoff)))
+    test = stats.SphericalChi2(sample, cone_pdf(axis, cos_cutoff), cone_domain(axis), 400_000)
+    result, _, _ = test.run()
+    assert result.passed(LEVEL), result
+    d = sample(400_000)
+    np.testing.assert_allclose(np.linalg.norm(d, axis=1), 1, rtol=1e-12)
+    assert np.all(d @ unit(axis) >= cos_cutoff - 1e-12)
+    result = cone_cos_chi2(d, axis, cos_cutoff, uniform_cos_cdf(cos_cutoff))
+    assert result.passed(LEVEL), result
+
+
+@pytest.mark.parametrize("axis,cos_cutoff", CONE_CASES)
+def test_uniform_cone_pdf_integrates_to_one(axis, cos_cutoff):
+    mass = cone_domain(axis).integrate(cone_pdf(axis, cos_cutoff))
+    assert mass.sum() == pytest.approx(1, abs=1e-7)
+
+
+def disk_histogram(points: np.ndarray, res_r2: int = 20, res_phi: int = 40) -> np.ndarray:
+    """Counts in bins of equal area, (r^2, phi); points off the unit disk (r > 1, or z != 0)
+    go to one last bin."""
+    r2 = points[:, 0] ** 2 + points[:, 1] ** 2
+    phi = np.mod(np.arctan2(points[:, 1], points[:, 0]), 2 * math.pi)
+    inside = (r2 <= 1) & (points[:, 2] == 0)
+    bins = [np.linspace(0, 1 + 1e-12, res_r2 + 1), np.linspace(0, 2 * math.pi, res_phi + 1)]
+    h, _, _ = np.histogram2d(r2[inside], phi[inside], bins=bins)
+    return np.append(h.ravel(), np.count_nonzero(~inside))
+
+
+def disk_expected(n: int, mass_within, res_r2: int = 20, res_phi: int = 40) -> np.ndarray:
+    """Expected counts of disk_histogram for a density invariant under rotation whose mass
+    within radius r is mass_within(r)."""
+    ring = np.diff(mass_within(np.sqrt(np.linspace(0, 1, res_r2 + 1))))
+    return np.append(np.repeat(ring / res_phi, res_phi), 0.0) * n
+
+
+def test_uniform_disk_sampling_chi2():
+    n = 400_000
+    points, pdf = _core.sample_uniform_disk(np.random.default_rng(7100).random((n, 2)))
+    np.testing.assert_array_equal(pdf, 1 / math.pi)
+    result = stats.chi2_test(disk_histogram(points), disk_expected(n, lambda r: r * r))
+    assert result.passed(LEVEL), result
+
+
+# --------------------------------------------------------------------------- cone and disk controls
+
+
+@pytest.mark.parametrize("axis,cos_cutoff", [CONE_CASES[1], CONE_CASES[3]])
+def test_chi2_rejects_cone_uniform_in_angle(axis, cos_cutoff):
+    """Directions uniform in theta instead of in solid angle against the cone's density, and
+    the cone's own samples against that wrong density: rejected."""
+    n = 400_000
+    theta_max = math.acos(cos_cutoff)
+    rng = np.random.default_rng(7200)
+
+    def angle_uniform(count: int) -> np.ndarray:
+        theta, phi = theta_max * rng.random(count), 2 * math.pi * rng.random(count)
+        sin = np.sin(theta)
+        local = np.stack([sin * np.cos(phi), sin * np.sin(phi), np.cos(theta)], 1)
+        return local @ stats.frame(unit(axis))
+
+    def angle_uniform_cdf(x):
+        return np.clip((theta_max - np.arccos(np.clip(x, -1.0, 1.0))) / theta_max, 0.0, 1.0)
+
+    sample = sample_cone_dirs(axis, cos_cutoff, seed=7201)
+    right = uniform_cos_cdf(cos_cutoff)
+    assert not cone_cos_chi2(angle_uniform(n), axis, cos_cutoff, right).passed(LEVEL)
+    assert not cone_cos_chi2(sample(n), axis, cos_cutoff, angle_uniform_cdf).passed(LEVEL)
+    if cos_cutoff <= 0.9:  # a narrower cone lies in one ring of the sphere's bins
+        domain, pdf = cone_domain(axis), cone_pdf(axis, cos_cutoff)
+        result, _, _ = stats.SphericalChi2(angle_uniform, pdf, domain, n).run()
+        assert not result.passed(LEVEL), result
+        wrong = cone_angle_uniform_pdf(axis, cos_cutoff)
+        result, _, _ = stats.SphericalChi2(sample, wrong, domain, n).run()
+        assert not result.passed(LEVEL), result
+
+
+@pytest.mark.parametrize("exponent", [0.97, 1.03])
+def test_chi2_rejects_cone_with_a_wrong_exponent(exponent):
+    """The cone warp fed u1^exponent, so that cos(theta) is no longer uniform: rejected."""
+    axis, cos_cutoff = CONE_CASES[2]
+    sample = sample_cone_dirs(axis, cos_cutoff, seed=7300, exponent=exponent)
+    test = stats.SphericalChi2(sample, cone_pdf(axis, cos_cutoff), cone_domain(axis), 400_000)
+    result, _, _ = test.run()
+    assert not result.passed(LEVEL), result
+    result = cone_cos_chi2(sample(400_000), axis, cos_cutoff, uniform_cos_cdf(cos_cutoff))
+    assert not result.passed(LEVEL), result
+
+
+def test_chi2_rejects_wrong_disk_densities():
+    """Points uniform in r (crowded at the centre) or at r = u^0.52 against the uniform disk,
+    the disk's own samples against the density uniform in r, and a point off the disk: all
+    rejected."""
+    n = 400_000
+    rng = np.random.default_rng(7400)
+    phi = 2 * math.pi * rng.random(n)
+
+    def polar(r: np.ndarray) -> np.ndarray:
+        return np.stack([r * np.cos(phi), r * np.sin(phi), np.zeros(n)], 1)
+
+    uniform_area = disk_expected(n, lambda r: r * r)
+    for r in (rng.random(n), rng.random(n) ** 0.52):
+        result = stats.chi2_test(disk_histogram(polar(r)), uniform_area)
+        assert not result.passed(LEVEL), result
+    points, _ = _core.sample_uniform_disk(np.random.default_rng(7401).random((n, 2)))
+    result = stats.chi2_test(disk_histogram(points), disk_expected(n, lambda r: r))
+    assert not result.passed(LEVEL), result
+    points[0] = (0.8, 0.7, 0.0)  # r > 1: in the bin of zero expected count
+    result = stats.chi2_test(disk_histogram(points), uniform_area)
     assert not result.passed(LEVEL) and "zero expected" in result.reason

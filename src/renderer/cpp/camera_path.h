@@ -6,7 +6,6 @@
 // after rr_depth events on max(throughput) * eta^2.
 #pragma once
 
-#include <climits>
 #include <type_traits>
 #include <vector>
 
@@ -80,7 +79,7 @@ size_t start_camera_wave(std::vector<Path> &paths, std::vector<int32_t> &active,
 class CameraPathSteps {
 public:
     CameraPathSteps(const Scene &scene, int max_depth, int rr_depth)
-        : scene_(scene), max_depth_(max_depth < 0 ? INT_MAX : max_depth), rr_depth_(rr_depth) {}
+        : scene_(scene), depth_(max_depth), rr_depth_(rr_depth) {}
 
     // Emission found by the sampled direction, weighted against light sampling.
     void add_emission(CameraPath &p, int tri, const Vec3 &x) const {
@@ -105,9 +104,10 @@ public:
         }
         return true;
     }
-    // Counts a real scattering event; false (and the path ends) past max_depth.
+    // Counts a real scattering event; false (and the path ends) when no path through it is
+    // within max_depth (NEE from here already makes a path of p.depth events).
     bool count_event(CameraPath &p) const {
-        if (++p.depth >= max_depth_) p.alive = false;
+        if (!depth_.allows(++p.depth)) p.alive = false;
         return p.alive;
     }
     // A shadow ray towards a light sample, weighted by the power heuristic
@@ -157,23 +157,15 @@ public:
         next_event(p, r, receiver, ls, bsdf_eval(mat, T.n, wo, ls.wi), bsdf_pdf(mat, T.n, wo, ls.wi),
                    scene_.spawn(x, tri, ls.wi), T.medium_after(p.medium, ls.wi));
     }
-    // Continues by BSDF sampling at surface vertex x (the event already counted).
+    // Continues by BSDF sampling at surface vertex x (the event already counted), with
+    // radiance transport; the MIS state and eta^2 are what a camera path adds.
     void continue_by_bsdf(CameraPath &p, int tri, const Vec3 &x) const {
-        const Triangle &T = scene_.triangles[tri];
-        double u1 = p.rng.next(), u2 = p.rng.next(), u3 = p.rng.next();
-        BsdfSample bs = bsdf_sample(scene_.materials[T.material], T.n, -p.dir, u1, u2, u3);
-        if (!bs.valid) {
-            p.alive = false;
-            return;
-        }
-        p.throughput *= bs.weight;
+        const BsdfSample bs = advance_by_bsdf(scene_, p, p.throughput, tri, x, /*radiance=*/true);
+        if (!bs.valid) return;
         p.prev_pos = x;
         p.prev_pdf = bs.pdf;
         p.prev_delta = bs.delta;
         p.eta2 *= bs.eta * bs.eta;
-        p.dir = bs.wi;
-        p.medium = T.medium_after(p.medium, bs.wi);
-        start_path_at(p, scene_.spawn(x, tri, bs.wi));
         p.alive = russian_roulette(p);
     }
     // Mitsuba's rule: after rr_depth real events, continue with probability
@@ -188,7 +180,8 @@ public:
 
 private:
     const Scene &scene_;
-    int max_depth_, rr_depth_;
+    DepthLimit depth_;
+    int rr_depth_;
 };
 
 // Keeps the paths still alive (in order) and writes their extension rays.

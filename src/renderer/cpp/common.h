@@ -101,6 +101,21 @@ struct Frame {
     Vec3 to_local(const Vec3 &v) const { return {dot(v, s), dot(v, t), dot(v, n)}; }
 };
 
+// Mitsuba's max_depth, the one rule every method applies: a path may have fewer than
+// max_depth real scattering events (null crossings and null collisions are free). So 0 renders
+// black, 1 shows emitters seen directly, 2 adds direct light, and a negative value (-1) is
+// unlimited. Each method counts the events of the path it builds and asks allows(count).
+class DepthLimit {
+public:
+    explicit DepthLimit(int max_depth) : max_depth_(max_depth) {}
+    bool allows(int events) const { return max_depth_ < 0 || events < max_depth_; }
+    bool unlimited() const { return max_depth_ < 0; }
+    int max_depth() const { return max_depth_; }
+
+private:
+    int max_depth_;
+};
+
 // Power heuristic with beta = 2 (Veach 1997, eq. 9.13) for two strategies.
 inline double power_heuristic(double pdf_a, double pdf_b) {
     double a = pdf_a * pdf_a, b = pdf_b * pdf_b;

@@ -11,7 +11,7 @@ constexpr uint64_t kLightStreamTag = 0x4c69676874506174ull;
 
 LightPathTracer::LightPathTracer(std::shared_ptr<const Scene> scene, int max_depth, int rr_depth, uint64_t seed,
                                  int64_t paths_per_iteration, int threads, int64_t max_records)
-    : scene_(std::move(scene)), max_depth_(max_depth), rr_depth_(rr_depth), seed_(seed),
+    : scene_(std::move(scene)), depth_(max_depth), rr_depth_(rr_depth), seed_(seed),
       threads_(std::max(1, threads)), max_records_(max_records) {
     if (paths_per_iteration <= 0) throw std::invalid_argument("paths_per_iteration must be positive");
     paths_.resize(size_t(paths_per_iteration));
@@ -44,7 +44,8 @@ size_t LightPathTracer::begin_iteration(int64_t iteration, const RayBuffers &out
     segments_.clear();
     active_.clear();
     const Scene &scene = *scene_;
-    if (max_depth_ == 0 || scene.light_selection.size() == 0 || scene.light_selection.total() <= 0) return 0;
+    // max_depth 0 renders black: not even a light seen directly is in range.
+    if (!depth_.allows(0) || scene.light_selection.size() == 0 || scene.light_selection.total() <= 0) return 0;
     size_t n = paths_.size();
     if (out.capacity < n) throw std::invalid_argument("light paths: ray buffers too small");
     slot_vertex_.resize(n);
@@ -114,10 +115,9 @@ EmissionSample sample_emission(const Scene &scene, const double u[6]) {
             s.power = l.intensity * (4 * kPi / pick);
             break;
         case LightType::Spot: {
-            // Uniform in the cutoff cone, weighted by the falloff.
-            double cos_theta = 1 - u[4] * (1 - l.cos_cutoff);
+            // Uniform in the cutoff cone (2 pi (1 - cos cutoff) is 1 / pdf), weighted by the falloff.
             s.pos = l.position;
-            s.dir = direction_around(l.direction, cos_theta, u[5]);
+            s.dir = square_to_uniform_cone(l.direction, l.cos_cutoff, u[4], u[5]);
             s.power = l.intensity * (l.spot_falloff(s.dir) * 2 * kPi * (1 - l.cos_cutoff) / pick);
             break;
         }
@@ -125,7 +125,7 @@ EmissionSample sample_emission(const Scene &scene, const double u[6]) {
             // A disk covering the scene's bounding sphere, just outside it,
             // perpendicular to the direction of travel: power = E * pi R^2 / pick.
             double radius = scene.scene_radius * 1.01;
-            Vec3 disk = square_to_cosine_hemisphere(u[4], u[5]);  // x, y uniform on the unit disk
+            Vec3 disk = square_to_uniform_disk_concentric(u[4], u[5]);
             Frame f(l.direction);
             s.pos = scene.scene_center - l.direction * radius + (f.s * disk.x + f.t * disk.y) * radius;
             s.dir = l.direction;
@@ -173,7 +173,7 @@ void LightPathTracer::emit(LightPathState &p, size_t slot, int64_t path) {
     double peak = max_component(p.power);
     if (!(peak > 0) || !is_finite(p.power)) return;
     p.inv_initial = 1 / peak;
-    p.alive = in_range(1);
+    p.alive = depth_.allows(1);
 }
 
 void LightPathTracer::scatter(const Hits &hits) {
@@ -196,7 +196,7 @@ void LightPathTracer::scatter(const Hits &hits) {
                                                p.rng, local, p.spectral);
             lookups += local.density_lookups;
             // A point on this segment scatters into a vertex of depth p.depth + 1.
-            if (record_segments_ && in_range(p.depth + 1)) {
+            if (record_segments_ && depth_.allows(p.depth + 1)) {
                 LightSegment &s = slot_segment_[k];
                 s.origin = segment_origin(p);
                 s.dir = p.dir;
@@ -236,7 +236,7 @@ void LightPathTracer::scatter_in_medium(LightPathState &p, size_t slot, const Ve
     const Medium &m = scene_->media[p.medium];
     ++p.depth;
     Vec3 wi = -p.dir;
-    if (record_vertices_ && in_range(p.depth)) {
+    if (record_vertices_ && depth_.allows(p.depth)) {
         LightVertex &v = slot_vertex_[slot];
         v = LightVertex();
         v.pos = x;
@@ -249,7 +249,7 @@ void LightPathTracer::scatter_in_medium(LightPathState &p, size_t slot, const Ve
         v.after_specular = p.after_specular;
         slot_has_vertex_[slot] = 1;
     }
-    if (!in_range(p.depth + 1)) {
+    if (!depth_.allows(p.depth + 1)) {
         p.alive = false;
         return;
     }
@@ -267,7 +267,7 @@ void LightPathTracer::scatter_on_surface(LightPathState &p, size_t slot, int tri
     const Material &mat = scene_->materials[T.material];
     ++p.depth;
     Vec3 wi = -p.dir;
-    if (record_vertices_ && !mat.is_delta() && dot(wi, T.n) > 0 && in_range(p.depth)) {
+    if (record_vertices_ && !mat.is_delta() && dot(wi, T.n) > 0 && depth_.allows(p.depth)) {
         LightVertex &v = slot_vertex_[slot];
         v = LightVertex();
         v.pos = x;
@@ -281,21 +281,14 @@ void LightPathTracer::scatter_on_surface(LightPathState &p, size_t slot, int tri
         v.after_specular = p.after_specular;
         slot_has_vertex_[slot] = 1;
     }
-    if (!in_range(p.depth + 1)) {
+    if (!depth_.allows(p.depth + 1)) {
         p.alive = false;
         return;
     }
-    double u1 = p.rng.next(), u2 = p.rng.next(), u3 = p.rng.next();
-    BsdfSample bs = bsdf_sample(mat, T.n, wi, u1, u2, u3, /*radiance=*/false);
-    if (!bs.valid) {
-        p.alive = false;
-        return;
-    }
-    p.power *= bs.weight;
+    // Adjoint transport: importance is not scaled by 1/eta^2 on refraction (lightpath.h).
+    const BsdfSample bs = advance_by_bsdf(*scene_, p, p.power, tri, x, /*radiance=*/false);
+    if (!bs.valid) return;
     p.after_specular = bs.delta;
-    p.dir = bs.wi;
-    p.medium = T.medium_after(p.medium, bs.wi);
-    start_path_at(p, scene_->spawn(x, tri, bs.wi));
     p.alive = russian_roulette(p);
 }
 

@@ -47,8 +47,8 @@
 // Depth (Mitsuba's max_depth): a vertex's `depth` counts the real scattering
 // events of the light path up to and including it (emission: 0, first hit: 1).
 // A path camera <- vertex built by connecting or gathering, with s further
-// scattering events on the camera side, is in range iff depth + s < max_depth
-// (max_depth < 0: unlimited). Records out of range for s = 0 are not made.
+// scattering events on the camera side, is in range iff DepthLimit::allows(depth + s)
+// (common.h). Records out of range for s = 0 are not made.
 // A segment's `depth` counts the events before its origin: a scattering point on
 // it makes a vertex of depth + 1. Null boundaries and null collisions are free.
 // Adjoint transport: refraction is sampled with `radiance = false` (no 1/eta^2
@@ -129,7 +129,7 @@ public:
 
     size_t capacity() const { return paths_.size(); }
     int64_t paths_per_iteration() const { return int64_t(paths_.size()); }
-    int max_depth() const { return max_depth_; }
+    int max_depth() const { return depth_.max_depth(); }
     int threads() const { return threads_; }
     const Scene &scene() const { return *scene_; }
     std::shared_ptr<const Scene> scene_ptr() const { return scene_; }
@@ -151,7 +151,6 @@ public:
     }
 
 private:
-    bool in_range(int depth) const { return max_depth_ < 0 || depth < max_depth_; }
     void emit(LightPathState &p, size_t slot, int64_t path);
     void scatter_in_medium(LightPathState &p, size_t slot, const Vec3 &x);
     void scatter_on_surface(LightPathState &p, size_t slot, int tri, const Vec3 &x);
@@ -160,7 +159,8 @@ private:
     void check_capacity() const;
 
     std::shared_ptr<const Scene> scene_;
-    int max_depth_, rr_depth_;
+    DepthLimit depth_;
+    int rr_depth_;
     uint64_t seed_;
     int threads_;
     int64_t max_records_;

@@ -305,6 +305,35 @@ static void add_sampling_probes(nb::module_ &m) {
                                     to_numpy(std::move(light), {n}), to_numpy(std::move(triangle), {n}),
                                     to_numpy(std::move(has_direction), {n}));
           }, "scene"_a, "u"_a);
+    // The warps of sampling.h that emission uses (spot cone, directional disk): u is (n, 2)
+    // uniforms; each returns the samples and the pdf the warp reports for them.
+    m.def("sample_uniform_cone",
+          [](V3 axis, double cos_cutoff, Array<double> u) {
+              if (u.ndim() != 2 || u.shape(1) != 2) throw std::invalid_argument("u must be (n, 2)");
+              size_t n = u.shape(0);
+              std::vector<double> dir(3 * n), pdf(n);
+              const Vec3 a = normalize(vec(axis));
+              for (size_t i = 0; i < n; ++i) {
+                  const double *ui = u.data() + 2 * i;
+                  Vec3 d = square_to_uniform_cone(a, cos_cutoff, ui[0], ui[1]);
+                  for (int k = 0; k < 3; ++k) dir[3 * i + k] = d[k];
+                  pdf[i] = square_to_uniform_cone_pdf(cos_cutoff);
+              }
+              return std::make_tuple(to_numpy(std::move(dir), {n, 3}), to_numpy(std::move(pdf), {n}));
+          }, "axis"_a, "cos_cutoff"_a, "u"_a);
+    m.def("sample_uniform_disk",
+          [](Array<double> u) {
+              if (u.ndim() != 2 || u.shape(1) != 2) throw std::invalid_argument("u must be (n, 2)");
+              size_t n = u.shape(0);
+              std::vector<double> point(3 * n), pdf(n);
+              for (size_t i = 0; i < n; ++i) {
+                  const double *ui = u.data() + 2 * i;
+                  Vec3 p = square_to_uniform_disk_concentric(ui[0], ui[1]);
+                  for (int k = 0; k < 3; ++k) point[3 * i + k] = p[k];
+                  pdf[i] = square_to_uniform_disk_concentric_pdf();
+              }
+              return std::make_tuple(to_numpy(std::move(point), {n, 3}), to_numpy(std::move(pdf), {n}));
+          }, "u"_a);
     m.def("sample_phase",
           [](int type, double g, V3 wo, Array<double> u) {
               Phase ph{PhaseType(type), g};

@@ -41,7 +41,7 @@ private:
 
 PhotonGatherer::PhotonGatherer(std::shared_ptr<const Scene> scene, int max_depth, uint64_t seed,
                                int spp_per_iteration, int threads)
-    : scene_(std::move(scene)), max_depth_(max_depth), seed_(seed),
+    : scene_(std::move(scene)), depth_(max_depth), seed_(seed),
       spp_per_iteration_(std::max(1, spp_per_iteration)), threads_(std::max(1, threads)),
       film_(scene_->camera.width, scene_->camera.height) {
     paths_.resize(size_t(film_.width) * film_.height * spp_per_iteration_);
@@ -68,7 +68,7 @@ void PhotonGatherer::build_maps(const LightPathTracer &paths) {
 size_t PhotonGatherer::begin_camera(int64_t iteration, const RayBuffers &out) {
     const Camera &cam = scene_->camera;
     active_.clear();
-    if (max_depth_ == 0) return 0;
+    if (!depth_.allows(0)) return 0;  // Mitsuba: max_depth 0 renders black
     if (out.capacity < paths_.size()) throw std::invalid_argument("pm: ray buffers too small");
     return start_camera_wave(paths_, active_, cam, iteration, spp_per_iteration_, seed_ ^ kGatherStreamTag, out,
                              threads_);
@@ -88,7 +88,7 @@ RGB PhotonGatherer::beam_estimate(const GatherPath &p, double t_hit, double radi
     volume_tree_.query_ray(origin, p.dir, tmax, radius, [&](uint32_t i, double t, double) {
         const LightVertex &ph = volume_photons_[i];
         if (ph.medium != p.medium) return;
-        if (max_depth_ >= 0 && ph.depth + p.specular >= max_depth_) return;
+        if (!depth_.allows(ph.depth + p.specular)) return;
         ++accepted;
         sum += track.at(t) * ph.power * phase_eval(m.phase, ph.wi, to_camera);
     });
@@ -100,8 +100,7 @@ RGB PhotonGatherer::surface_estimate(const GatherPath &p, int tri, const Vec3 &x
                                      uint64_t &accepted) const {
     RGB reflected = reflected_photon_power(*scene_, surface_tree_, surface_photons_, tri, x, -p.dir, radius,
                                            [&](const LightVertex &ph) {
-                                               if (max_depth_ >= 0 && ph.depth + p.specular >= max_depth_)
-                                                   return false;
+                                               if (!depth_.allows(ph.depth + p.specular)) return false;
                                                ++accepted;
                                                return true;
                                            });
@@ -112,7 +111,7 @@ void PhotonGatherer::shade(const Hits &hits, double surface_radius, double volum
     const Scene &scene = *scene_;
     hits.expect(active_.size(), "pm shade");
     uint64_t lookups = 0, surface_accepted = 0, volume_accepted = 0;
-    const int max_specular = max_depth_ < 0 ? kMaxSpecularBounces : max_depth_;
+    const DepthLimit specular_limit = depth_.unlimited() ? DepthLimit(kMaxSpecularBounces) : depth_;
 #pragma omp parallel for schedule(dynamic, 64) num_threads(threads_) \
     reduction(+ : lookups, surface_accepted, volume_accepted)
     for (int64_t k = 0; k < int64_t(hits.count); ++k) {
@@ -140,7 +139,7 @@ void PhotonGatherer::shade(const Hits &hits, double surface_radius, double volum
         const Material &mat = scene.materials[T.material];
         Vec3 x = T.point(hits.u[k], hits.v[k]);
         // Emitters seen directly or through specular chains: full weight (no NEE here).
-        if (max_depth_ < 0 || p.specular < max_depth_) p.radiance += p.throughput * scene.emitted(tri, p.dir);
+        if (depth_.allows(p.specular)) p.radiance += p.throughput * scene.emitted(tri, p.dir);
         if (mat.type == MaterialType::Null) {
             cross_null_boundary(scene, p, tri, x);
             continue;
@@ -151,20 +150,11 @@ void PhotonGatherer::shade(const Hits &hits, double surface_radius, double volum
             continue;
         }
         // Specular: follow the chain (radiance transport, weights <= 1: no roulette).
-        if (++p.specular >= max_specular) {
+        if (!specular_limit.allows(++p.specular)) {
             p.alive = false;
             continue;
         }
-        double u1 = p.rng.next(), u2 = p.rng.next(), u3 = p.rng.next();
-        BsdfSample bs = bsdf_sample(mat, T.n, -p.dir, u1, u2, u3, /*radiance=*/true);
-        if (!bs.valid) {
-            p.alive = false;
-            continue;
-        }
-        p.throughput *= bs.weight;
-        p.dir = bs.wi;
-        p.medium = T.medium_after(p.medium, bs.wi);
-        start_path_at(p, scene.spawn(x, tri, bs.wi));
+        advance_by_bsdf(scene, p, p.throughput, tri, x, /*radiance=*/true);
     }
     medium_stats_.density_lookups += lookups;
     stats_.surface_lookups += surface_accepted;

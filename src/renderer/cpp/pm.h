@@ -26,7 +26,7 @@
 //          over surface photons within r_s whose surface faces the same way.
 //   3. `end_iteration`: each path's radiance to its pixel, in path order.
 // A photon of depth k gathered after s specular camera bounces makes a path
-// of s + k real scattering events: it is used iff s + k < max_depth (Mitsuba).
+// of s + k real scattering events: it is used iff DepthLimit::allows(s + k) (Mitsuba).
 // The estimate is biased by the kernel (blur over r); pm keeps r fixed, sppm
 // shrinks it per iteration (radius_schedule.h) so the mean of the iterations
 // converges.
@@ -85,7 +85,7 @@ private:
     RGB surface_estimate(const GatherPath &p, int tri, const Vec3 &x, double radius, uint64_t &accepted) const;
 
     std::shared_ptr<const Scene> scene_;
-    int max_depth_;
+    DepthLimit depth_;
     uint64_t seed_;
     int spp_per_iteration_, threads_;
     std::vector<GatherPath> paths_;

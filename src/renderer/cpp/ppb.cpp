@@ -1,13 +1,11 @@
 #include "ppb.h"
 
-#include <climits>
-
 namespace pgi {
 
 PhotonBeams::PhotonBeams(std::shared_ptr<const Scene> scene, int max_depth, int rr_depth, uint64_t seed,
                          int spp_per_iteration, int threads, size_t max_beams, double radius, double alpha,
                          int gather_diffuse_bounces)
-    : scene_(std::move(scene)), steps_(*scene_, max_depth, rr_depth), max_depth_(max_depth), seed_(seed),
+    : scene_(std::move(scene)), steps_(*scene_, max_depth, rr_depth), depth_(max_depth), seed_(seed),
       spp_per_iteration_(std::max(1, spp_per_iteration)), threads_(std::max(1, threads)),
       gather_diffuse_bounces_(gather_diffuse_bounces),
       film_(scene_->camera.width, scene_->camera.height), bvh_(max_beams), schedule_(radius, alpha, 1) {
@@ -62,7 +60,7 @@ size_t PhotonBeams::begin_wave(int64_t iteration, const RayBuffers &out) {
     const Camera &cam = scene_->camera;
     active_.clear();
     shadow_.clear();
-    if (max_depth_ == 0) return 0;  // Mitsuba: max_depth 0 renders black
+    if (!depth_.allows(0)) return 0;  // Mitsuba: max_depth 0 renders black
     // A stream key distinct from the light paths' (which use (seed, iteration, path)).
     return start_camera_wave(paths_, active_, cam, iteration, spp_per_iteration_, seed_ ^ 0x5bd1e995b5ull, out,
                              threads_);
@@ -72,9 +70,8 @@ size_t PhotonBeams::begin_wave(int64_t iteration, const RayBuffers &out) {
 RGB PhotonBeams::gather(BeamGatherPath &p, double t_end, MediumStats &local, uint64_t &pairs) const {
     RGB sum(0.0);
     // A beam of depth k gathered after p.depth surface events makes a path of
-    // k + 1 + p.depth real events, which must stay below max_depth.
-    int max_beam_depth = max_depth_ < 0 ? INT_MAX : max_depth_ - 2 - p.depth;
-    if (max_beam_depth < 0 || bvh_.beams().empty()) return sum;
+    // k + 1 + p.depth real events; none is in range if one of depth 0 is not.
+    if (!depth_.allows(1 + p.depth) || bvh_.beams().empty()) return sum;
     const Medium &m = scene_->media[p.medium];
     const bool homogeneous = m.type == MediumType::Homogeneous;
     const Vec3 wo = -p.dir;
@@ -82,7 +79,7 @@ RGB PhotonBeams::gather(BeamGatherPath &p, double t_end, MediumStats &local, uin
     const Vec3 origin = segment_origin(p);
     bvh_.query(origin, p.dir, t_end, [&](int32_t index, const BeamHit &h) {
         const Beam &b = bvh_.beams()[index];
-        if (b.medium != p.medium || b.depth > max_beam_depth) return;
+        if (b.medium != p.medium || !depth_.allows(b.depth + 1 + p.depth)) return;
         RGB weight;
         if (homogeneous) {
             // Camera transmittance in closed form; the short beam's Tr(s) / P(t > s)
@@ -161,7 +158,7 @@ RGB PhotonBeams::gather_photons(const BeamGatherPath &p, int tri, const Vec3 &x)
     // The photon's vertex is x itself: v.depth + (p.depth - 1) events in all.
     RGB reflected = reflected_photon_power(*scene_, photon_tree_, photons_, tri, x, -p.dir, photon_radius_,
                                            [&](const LightVertex &v) {
-                                               return max_depth_ < 0 || v.depth + p.depth - 1 < max_depth_;
+                                               return depth_.allows(v.depth + p.depth - 1);
                                            });
     return reflected * photon_scale_;
 }

@@ -36,7 +36,7 @@
 // vertex lies: before the (k+1)-th diffuse surface -> beams (every light-side
 // prefix, any depth), otherwise (or none) -> path tracing; nothing is counted
 // twice. A small k keeps the expensive beam queries to a few segments per
-// pixel sample. Depth (Mitsuba's max_depth): a beam gathered after s surface
+// pixel sample. Depth (Mitsuba's max_depth, DepthLimit): a beam gathered after s surface
 // events on the camera side makes a path of beam.depth + 1 + s events.
 #pragma once
 
@@ -105,7 +105,7 @@ private:
 
     std::shared_ptr<const Scene> scene_;
     CameraPathSteps steps_;
-    int max_depth_;
+    DepthLimit depth_;
     uint64_t seed_;
     int spp_per_iteration_, threads_;
     int gather_diffuse_bounces_;

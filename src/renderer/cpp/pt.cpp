@@ -10,7 +10,7 @@ constexpr int64_t kClaimedPaths = 256;
 
 PathTracer::PathTracer(std::shared_ptr<const Scene> scene, int max_depth, int rr_depth, uint64_t seed,
                        int spp_per_wave, int lanes, int slots_per_lane)
-    : scene_(std::move(scene)), steps_(*scene_, max_depth, rr_depth), max_depth_(max_depth), seed_(seed),
+    : scene_(std::move(scene)), steps_(*scene_, max_depth, rr_depth), depth_(max_depth), seed_(seed),
       spp_per_wave_(std::max(1, spp_per_wave)), film_(scene_->camera.width, scene_->camera.height) {
     wave_paths_ = int64_t(film_.width) * film_.height * spp_per_wave_;
     radiance_.resize(size_t(wave_paths_));
@@ -27,7 +27,7 @@ void PathTracer::begin_wave(int64_t iteration) {
     iteration_ = iteration;
     std::fill(radiance_.begin(), radiance_.end(), RGB(0.0));
     // Mitsuba: max_depth 0 renders black; the wave then has no path to trace.
-    next_path_.store(max_depth_ == 0 ? wave_paths_ : 0);
+    next_path_.store(depth_.allows(0) ? 0 : wave_paths_);
     for (auto &l : lanes_) l->reset();
 }
 

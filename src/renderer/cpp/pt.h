@@ -80,7 +80,7 @@ private:
 
     std::shared_ptr<const Scene> scene_;
     CameraPathSteps steps_;
-    int max_depth_;
+    DepthLimit depth_;
     uint64_t seed_;
     int spp_per_wave_;
     int64_t wave_paths_ = 0, iteration_ = 0;

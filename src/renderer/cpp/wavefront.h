@@ -1,6 +1,7 @@
-// Machinery every wavefront method shares: the ray-buffer layout handed to
-// Embree, the queue of shadow (connection) rays that cross null boundaries
-// and media on their way, and the float64 film.
+// Machinery every wavefront method shares: the steps any path (camera or light)
+// takes at a surface, the ray-buffer layout handed to Embree, the queue of shadow
+// (connection) rays that cross null boundaries and media on their way, and the
+// float64 film.
 #pragma once
 
 #include <omp.h>
@@ -52,6 +53,29 @@ void cross_null_boundary(const Scene &scene, Path &p, int tri, const Vec3 &x) {
     p.medium = scene.triangles[tri].medium_after(p.medium, p.dir);
     start_path_at(p, scene.spawn(x, tri, p.dir));
     p.alive = ++p.null_crossings < kMaxNullCrossings;
+}
+
+// The BSDF step of every path at a scattering surface x on triangle `tri`: samples the BSDF
+// for wo = -p.dir from three uniforms of the path's stream and, if the sample is valid,
+// multiplies `carried` (a camera path's throughput, a light path's power) by its weight and
+// sends the path along wi: the medium on that side, the next ray off the surface. `radiance`
+// is the transport bsdf_sample scales refraction for (false: a light path's importance). An
+// invalid sample ends the path. What differs by path stays with the caller: the MIS state,
+// eta^2 or the specular flag kept from the sample, and Russian roulette.
+template <typename Path>
+BsdfSample advance_by_bsdf(const Scene &scene, Path &p, RGB &carried, int tri, const Vec3 &x, bool radiance) {
+    const Triangle &T = scene.triangles[tri];
+    double u1 = p.rng.next(), u2 = p.rng.next(), u3 = p.rng.next();
+    BsdfSample bs = bsdf_sample(scene.materials[T.material], T.n, -p.dir, u1, u2, u3, radiance);
+    if (!bs.valid) {
+        p.alive = false;
+        return bs;
+    }
+    carried *= bs.weight;
+    p.dir = bs.wi;
+    p.medium = T.medium_after(p.medium, bs.wi);
+    start_path_at(p, scene.spawn(x, tri, bs.wi));
+    return bs;
 }
 
 // Ray buffers owned by Python: origins (n, 3), directions (n, 3), tmax (n).
