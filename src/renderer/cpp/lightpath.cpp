@@ -115,21 +115,21 @@ EmissionSample sample_emission(const Scene &scene, const double u[6]) {
             s.power = l.intensity * (4 * kPi / pick);
             break;
         case LightType::Spot: {
-            // Uniform in the cutoff cone (2 pi (1 - cos cutoff) is 1 / pdf), weighted by the falloff.
+            // Uniform in the cutoff cone, weighted by the falloff.
             s.pos = l.position;
             s.dir = square_to_uniform_cone(l.direction, l.cos_cutoff, u[4], u[5]);
-            s.power = l.intensity * (l.spot_falloff(s.dir) * 2 * kPi * (1 - l.cos_cutoff) / pick);
+            s.power = l.intensity * (l.spot_falloff(s.dir) / (square_to_uniform_cone_pdf(l.cos_cutoff) * pick));
             break;
         }
         case LightType::Directional: {
-            // A disk covering the scene's bounding sphere, just outside it,
-            // perpendicular to the direction of travel: power = E * pi R^2 / pick.
+            // A disk covering the scene's bounding sphere, just outside it, perpendicular to
+            // the direction of travel: power = E * area / pick, the unit disk's pdf scaled by R^2.
             double radius = scene.scene_radius * 1.01;
             Vec3 disk = square_to_uniform_disk_concentric(u[4], u[5]);
             Frame f(l.direction);
             s.pos = scene.scene_center - l.direction * radius + (f.s * disk.x + f.t * disk.y) * radius;
             s.dir = l.direction;
-            s.power = l.intensity * (kPi * radius * radius / pick);
+            s.power = l.intensity * (radius * radius / (square_to_uniform_disk_concentric_pdf() * pick));
             break;
         }
     }
