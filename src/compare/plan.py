@@ -124,15 +124,11 @@ def number_as_text_hint(value: Any, expected: Any = "number") -> str:
 
 def yaml11_spelling(number: int | float) -> str:
     """How to write a number so that YAML 1.1 reads it as one: its float needs a dot in the
-    mantissa and a sign in the exponent (1e-09 is text there, 1.0e-09 a number)."""
+    mantissa (1e-09 is text there, 1.0e-09 a number; repr always signs the exponent)."""
     text = repr(number)
-    if isinstance(number, float) and "e" in text:
-        mantissa, exponent = text.split("e")
-        if "." not in mantissa:
-            mantissa += ".0"
-        if exponent[0] not in "+-":
-            exponent = "+" + exponent
-        text = f"{mantissa}e{exponent}"
+    mantissa, e, exponent = text.partition("e")
+    if isinstance(number, float) and e and "." not in mantissa:
+        text = f"{mantissa}.0e{exponent}"
     return text
 
 

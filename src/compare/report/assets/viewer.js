@@ -147,11 +147,10 @@
     paintImage(P[1], ref);
     var err = px ? paintError(P[2], px, ref) : NaN;
     // the mean the tables have: of the full-size image, not of the map shown
-    var full = ((D.relmse || {})[name] || {})[budget];
+    var full = (D.relmse[name] || {})[budget];  // none for the reference itself
     if (full !== undefined) err = full;
-    var film = D.film || [W, H];
-    var size = film[0] !== W || film[1] !== H ?
-      " of the " + film[0] + "×" + film[1] + " image; map shown at " + W + "×" + H : "";
+    var size = D.film[0] !== W || D.film[1] !== H ?
+      " of the " + D.film[0] + "×" + D.film[1] + " image; map shown at " + W + "×" + H : "";
     P[2].cap.textContent = "relMSE per pixel of " + label + " (mean " + err.toPrecision(3) +
       size + "; log scale " + D.err_lo.toPrecision(2) + " … " + D.err_hi.toPrecision(2) + ")";
     blitAll();
