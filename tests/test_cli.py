@@ -514,12 +514,12 @@ def test_a_setting_the_method_does_not_read_is_refused(tmp_path):
         r = pgi("render", "smoke", "--method", "mitsuba", "--spp", "1", *small("--set", kv),
                 "-o", str(out))  # fmt: skip
         assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
-        assert f"--set {kv}: method mitsuba does not read this setting" in r.stderr, r.stderr
+        assert f"--set {kv}: Mitsuba does not read this setting" in r.stderr, r.stderr
     # The reference is Mitsuba's volpath too.
     r = pgi("reference", "smoke", "--spp", "1", *small("--set", "integrator.estimator=delta"),
             "-o", str(out))  # fmt: skip
     assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
-    assert "integrator.estimator=delta: method mitsuba does not read this setting" in r.stderr
+    assert "integrator.estimator=delta: Mitsuba does not read this setting" in r.stderr
     assert list(tmp_path.iterdir()) == []
     r = pgi("render", "smoke", "--method", "pt", "--spp", "1",
             *small("--set", "integrator.estimator=delta"), "-o", str(out))  # fmt: skip

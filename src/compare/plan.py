@@ -408,7 +408,7 @@ def _render_parser_for_method_args() -> Any:
 
 def check_method_args(method: str, args: tuple[str, ...]) -> list[str]:
     """``method_args`` as `pgi render` would read them, before any job runs: options it knows,
-    none the workflow sets itself (``--spp`` would stop a run before its last snapshot), and
+    none that are the workflow's to give (``--spp`` would stop a run before its last snapshot), and
     ``--set`` only for method parameters (a scene value would change what the reference
     shows). Returns the parameters they set (``method.KEY``)."""
     import contextlib
@@ -428,7 +428,10 @@ def check_method_args(method: str, args: tuple[str, ...]) -> list[str]:
         ) from None
     given = [o for dest, o in _WORKFLOW_OPTIONS.items() if getattr(parsed, dest) is not _UNSET]
     if given:
-        raise PlanError(f"{where}: {', '.join(given)}: the workflow sets this itself")
+        raise PlanError(
+            f"{where}: {', '.join(given)}: the workflow gives this itself (a run's budgets are "
+            "its snapshots)"
+        )
     keys = []
     for kv in parsed.set:
         key = kv.split("=", 1)[0]

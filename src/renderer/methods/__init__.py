@@ -52,9 +52,10 @@ NOT_YET_IMPLEMENTED: dict[str, str] = {
 
 
 # Scene settings a method does not read: overriding one would render the method unchanged
-# under another name (a study variant, say), so a render refuses it.
-UNREAD_SETTINGS: dict[str, tuple[str, ...]] = {
-    "mitsuba": ("integrator.estimator", "integrator.march_step"),  # our media estimators
+# under another name (a study variant, say), so a render refuses it. Per method: who renders
+# it (named in the message: `pgi reference` is Mitsuba too) and the settings.
+UNREAD_SETTINGS: dict[str, tuple[str, tuple[str, ...]]] = {
+    "mitsuba": ("Mitsuba", ("integrator.estimator", "integrator.march_step")),  # ours only
 }
 
 
@@ -63,13 +64,16 @@ def check_overrides(method_id: str, overrides: list[str] | tuple[str, ...]) -> N
     as part of a mapping (`integrator={estimator: delta}`)."""
     from ..scene.loader import parse_yaml_value
 
+    if method_id not in UNREAD_SETTINGS:
+        return
+    reader, settings = UNREAD_SETTINGS[method_id]
     for kv in overrides:
         key, _, raw = kv.partition("=")
         key = key.strip()
-        for setting in UNREAD_SETTINGS.get(method_id, ()):
+        for setting in settings:
             below = setting[len(key) + 1 :].split(".") if setting.startswith(key + ".") else None
             if key == setting or (below and _holds(parse_yaml_value(raw, f"--set {key}"), below)):
-                raise PgiError(f"--set {kv}: method {method_id} does not read this setting")
+                raise PgiError(f"--set {kv}: {reader} does not read this setting")
 
 
 def _holds(value: object, keys: list[str]) -> bool:
