@@ -3,6 +3,7 @@
 #include "bindings.h"
 #include "lightpath.h"
 #include "pt.h"
+#include "surface_photons.h"
 
 namespace nb = nanobind;
 using namespace nb::literals;
@@ -168,7 +169,34 @@ static void add_scene(nb::module_ &m) {
                      out[i] = m.grid.density_local(m.grid.to_local(p));
                  }
                  return to_numpy(std::move(out), {n});
-             }, "medium"_a, "points"_a);
+             }, "medium"_a, "points"_a)
+        // Surface density estimation's sum (reflected_photon_power) at x on triangle `tri`,
+        // seen from wo, over the photons given (positions, triangles, incoming directions,
+        // powers), every depth counted: which photons belong to the surface.
+        .def("surface_photon_power",
+             [](const Scene &s, int tri, V3 x, V3 wo, double radius, Array<double> pos,
+                Array<int32_t> triangle, Array<double> wi, Array<double> power) {
+                 size_t n = pos.shape(0);
+                 if (triangle.shape(0) != n || wi.shape(0) != n || power.shape(0) != n)
+                     throw std::invalid_argument("surface_photon_power: photon arrays differ in length");
+                 auto valid = [&](int32_t t) { return t >= 0 && size_t(t) < s.triangles.size(); };
+                 if (!valid(tri) || !std::all_of(triangle.data(), triangle.data() + n, valid))
+                     throw std::invalid_argument("surface_photon_power: no such triangle");
+                 std::vector<LightVertex> photons(n);
+                 std::vector<Vec3> points(n);
+                 for (size_t i = 0; i < n; ++i) {
+                     const double *p = pos.data() + 3 * i, *w = wi.data() + 3 * i, *f = power.data() + 3 * i;
+                     photons[i].pos = points[i] = Vec3(p[0], p[1], p[2]);
+                     photons[i].wi = normalize(Vec3(w[0], w[1], w[2]));
+                     photons[i].power = RGB(f[0], f[1], f[2]);
+                     photons[i].triangle = triangle.data()[i];
+                 }
+                 PointTree tree;
+                 tree.build(points);
+                 RGB sum = reflected_photon_power(s, tree, photons, tri, vec(x), normalize(vec(wo)), radius,
+                                                  [](const LightVertex &) { return true; });
+                 return V3{sum.x, sum.y, sum.z};
+             }, "tri"_a, "x"_a, "wo"_a, "radius"_a, "pos"_a, "triangle"_a, "wi"_a, "power"_a);
 }
 
 static void add_sampling_probes(nb::module_ &m) {
