@@ -795,6 +795,70 @@ def test_a_failed_final_write_names_the_snapshots_it_kept(tmp_path, monkeypatch,
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fog.t1e-06.exr", "fog.t1e-06.json"]
 
 
+def test_names_no_file_can_have_get_one_line(tmp_path):
+    """File names the system cannot look up: a NUL character in a scene's file name (render,
+    reference, validate), a name too long for the file system (compare), and an output that
+    is a symbolic link looping back on itself (replaced by the image, as any output link is).
+    Each once ended in a traceback where the check against overwriting the scene's own files
+    followed links."""
+    nul = ("--set", 'shapes[0]={type: mesh, file: "a\\0b.obj", material: white}')
+    out = tmp_path / "n.exr"
+    for args in (["render", "cbox", "--method", "pt", "--spp", "1", *small(*nul), "-o", str(out)],
+                 ["reference", "cbox", "--spp", "1", *small(*nul), "-o", str(out)],
+                 ["validate", "cbox", *nul]):  # fmt: skip
+        r = pgi(*args)
+        assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+        assert "shapes[0].file: mesh file cannot exist: its name has a NUL character" in r.stderr
+        assert "\0" not in r.stderr and "a\\x00b.obj" in r.stderr, r.stderr  # shown escaped
+    (tmp_path / "l1").symlink_to("l2")
+    (tmp_path / "l2").symlink_to("l1")
+    loop = tmp_path / "loop.exr"
+    loop.symlink_to("l2")
+    r = pgi("render", "cbox", "--method", "pt", "--spp", "1", *small("-q", "-o", str(loop)))
+    assert r.returncode == 0 and loop.is_file() and not loop.is_symlink(), r.stderr
+    for pair in (["a" * 300 + ".exr", str(loop)], [str(loop), "a" * 300 + ".exr"]):
+        r = pgi("compare", *pair)
+        assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+        assert "File name too long" in r.stderr and len(r.stderr.splitlines()) == 1, r.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["l1", "l2", "loop.exr", "loop.json"]
+
+
+def test_a_failed_pair_write_leaves_the_earlier_pair_as_it_was(tmp_path, monkeypatch):
+    """An image and its sidecar rewritten at the same path: when either write fails (a full
+    disk), the earlier image and sidecar stay as they were and no temporary file is left. The
+    image was once moved into place before the sidecar was written, so a failed sidecar left
+    the earlier sidecar beside no image."""
+    from pathlib import Path
+
+    from renderer import imageio
+    from renderer.errors import PgiError
+
+    out = tmp_path / "a.exr"
+    first = np.full((2, 3, 3), 0.25)
+    imageio.write_image_and_sidecar(out, first, {"run": 1})
+    original_write_text = Path.write_text
+
+    def full_disk(self, *args, **kwargs):
+        raise OSError(28, "No space left on device")
+
+    for failing in ("sidecar", "image"):
+        with monkeypatch.context() as m:
+            if failing == "sidecar":
+                m.setattr(Path, "write_text", full_disk)
+            else:
+                m.setattr(imageio.oiio.ImageOutput, "create", staticmethod(lambda name: None))
+            with pytest.raises(PgiError, match="No space left|cannot create image writer"):
+                imageio.write_image_and_sidecar(out, first * 2, {"run": 2})
+        assert Path.write_text is original_write_text
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["a.exr", "a.json"], failing
+        assert np.array_equal(imageio.read_exr(out), first) and imageio.read_json(
+            out.with_suffix(".json")
+        ) == {"run": 1}, failing
+    imageio.write_image_and_sidecar(out, first * 2, {"run": 2})  # and a good write replaces both
+    assert np.array_equal(imageio.read_exr(out), first * 2)
+    assert imageio.read_json(out.with_suffix(".json")) == {"run": 2}
+
+
 @pytest.mark.parametrize("threads", ["1", "2"])  # 2: pt's lanes trace on two threads
 def test_sigterm_mid_render_cleans_up_as_ctrl_c_does(tmp_path, threads):
     """SIGTERM (a cancelled workflow job, `timeout`) ends a render as Ctrl-C does: the

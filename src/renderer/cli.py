@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from . import __version__
-from .errors import PgiError, caused_by_interrupt, shorten_repr
+from .errors import PgiError, caused_by_interrupt, printable, shorten_repr
 from .interrupts import native_passes_interruptible
 
 
@@ -73,6 +73,15 @@ def split_sets(items: list[str], command: str = "render") -> tuple[list[str], di
     return overrides, params
 
 
+def _resolved(path: Path) -> Path | None:
+    """``path`` with its links followed, or None where it has no such form (links that loop,
+    a NUL character in the name): no scene can read it, and loading says why."""
+    try:
+        return path.resolve()
+    except (OSError, RuntimeError, ValueError):
+        return None
+
+
 def _refuse_overwriting_the_scene(
     scene: str, outputs: list[Path], overrides: Sequence[str] = ()
 ) -> None:
@@ -81,12 +90,12 @@ def _refuse_overwriting_the_scene(
     from .scene.loader import scene_sources
 
     try:
-        sources = {p.resolve() for p in scene_sources(scene, overrides)}
+        sources = {_resolved(p) for p in scene_sources(scene, overrides)} - {None}
     except PgiError:  # no such scene: loading it says so
         return
     for out in outputs:
         for target in (out, out.with_suffix(".json")):
-            if target.resolve() in sources:
+            if _resolved(target) in sources:
                 raise PgiError(f"-o {out}: would overwrite {target}, which the scene reads")
 
 
@@ -487,7 +496,7 @@ def main(argv: list[str] | None = None) -> int:
         return _stdout_failed(e)
     except PgiError as e:
         _end_progress_line()
-        print(f"pgi: error: {e}", file=sys.stderr)
+        print(f"pgi: error: {printable(str(e))}", file=sys.stderr)
         return 2
     except MemoryError:
         _end_progress_line()

@@ -16,6 +16,14 @@ def shorten(text: str, limit: int = 40) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
+def printable(text: str) -> str:
+    """A message with the control characters a user's input may carry (a NUL in a file name,
+    an escape sequence) written as escapes, so that a terminal shows them."""
+    return "".join(
+        c if c.isprintable() or c == "\n" else c.encode("unicode_escape").decode() for c in text
+    )
+
+
 def one_line(text: str, limit: int = 160) -> str:
     """A library's message quoted in ours: whitespace runs collapsed, cut to `limit`
     characters (a corrupt file can make one gigabytes long)."""
@@ -25,6 +33,8 @@ def one_line(text: str, limit: int = 160) -> str:
 def not_a_file(path: Path) -> str:
     """Why ``path``, which the caller found is not a regular file, cannot be read as one:
     "not found", or what it is instead."""
+    if "\0" in str(path):
+        return "cannot exist: its name has a NUL character"
     if path.is_symlink() and not path.exists():
         return "is a symbolic link to nothing (its target is missing, or the links loop)"
     if path.is_dir():

@@ -27,7 +27,11 @@ def read_exr(path: str | Path) -> np.ndarray:
 def read_exr_and_channels(path: str | Path) -> tuple[np.ndarray, int]:
     """read_exr's image, and how many colour channels the file stores (1: grey, 3: RGB)."""
     path = Path(path)
-    if path.is_dir():
+    try:
+        is_dir = path.is_dir()
+    except OSError as e:  # e.g. a file name longer than the file system allows
+        raise PgiError(f"{shorten(str(path), 80)}: {e.strerror or e}") from None
+    if is_dir:
         raise PgiError(f"{path}: is a folder, expected an image file")
     if not path.is_file():
         reason = not_a_file(path)
@@ -126,6 +130,28 @@ def write_exr(path: str | Path, image: np.ndarray, metadata: dict | None = None)
     ``metadata`` is stored as a JSON string attribute ``pgi`` in the header.
     """
     path = Path(path)
+    _move_into_place([(_exr_to_temporary(path, image, metadata), path)])
+
+
+def write_json(path: str | Path, data: dict) -> None:
+    """Write a JSON sidecar atomically (its folder is created as write_exr's is)."""
+    path = Path(path)
+    _move_into_place([(_json_to_temporary(path, data), path)])
+
+
+def _temporary(path: Path, suffix: str = "") -> Path:
+    return path.with_name(f".{path.name}.tmp{os.getpid()}{suffix}")
+
+
+def _make_folder(path: Path) -> None:
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise PgiError(f"{path}: cannot create its folder: {e.strerror or e}") from None
+
+
+def _exr_to_temporary(path: Path, image: np.ndarray, metadata: dict | None) -> Path:
+    """The EXR written under a temporary name beside ``path``; nothing is left if it fails."""
     given = np.asarray(image)
     with np.errstate(over="ignore"):  # overflow is checked below
         image = given.astype(np.float32)
@@ -138,44 +164,56 @@ def write_exr(path: str | Path, image: np.ndarray, metadata: dict | None = None)
                 f"EXR holds ({np.finfo(np.float32).max:.3g}); make the lights dimmer"
             )
         raise ValueError(f"refusing to write non-finite pixels to {path}")
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise PgiError(f"{path}: cannot create its folder: {e.strerror or e}") from None
+    _make_folder(path)
     spec = oiio.ImageSpec(image.shape[1], image.shape[0], 3, oiio.FLOAT)
     spec.channelnames = ("R", "G", "B")
     spec.attribute("compression", "zip")
     if metadata:
         spec.attribute("pgi", json.dumps(metadata, default=str))
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}.exr")
+    tmp = _temporary(path, ".exr")
     out = oiio.ImageOutput.create(str(tmp))
     if out is None:
         raise PgiError(f"{path}: cannot create image writer: {oiio.geterror()}")
     try:
         if not out.open(str(tmp), spec) or not out.write_image(image):
             raise PgiError(f"{path}: cannot write image: {out.geterror()}")
-        out.close()
-        os.replace(tmp, path)
-    except OSError as e:  # e.g. the path is a folder
-        raise PgiError(f"{path}: cannot write: {e.strerror or e}") from None
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+        if not out.close():
+            raise PgiError(f"{path}: cannot write image: {out.geterror()}")
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return tmp
 
 
-def write_json(path: str | Path, data: dict) -> None:
-    """Write a JSON sidecar atomically (its folder is created as write_exr's is)."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+def _json_to_temporary(path: Path, data: dict) -> Path:
+    """The JSON written under a temporary name beside ``path``; nothing is left if it fails."""
+    _make_folder(path)
+    tmp = _temporary(path)
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
         tmp.write_text(json.dumps(data, indent=2, sort_keys=True, default=str) + "\n")
-        os.replace(tmp, path)
     except OSError as e:
+        tmp.unlink(missing_ok=True)
         raise PgiError(f"{path}: cannot write: {e.strerror or e}") from None
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return tmp
+
+
+def _move_into_place(files: list[tuple[Path, Path]]) -> None:
+    """Each (temporary, target) renamed over its target. Should a rename fail (the target a
+    folder, say), none of the targets is left, rather than a pair of which one is stale."""
+    try:
+        for tmp, target in files:
+            os.replace(tmp, target)
+    except OSError as e:
+        for _, target in files:
+            if target.is_file():
+                target.unlink()
+        raise PgiError(f"{target}: cannot write: {e.strerror or e}") from None
     finally:
-        if tmp.exists():
-            tmp.unlink()
+        for tmp, _ in files:
+            tmp.unlink(missing_ok=True)
 
 
 def read_json(path: str | Path) -> dict:
@@ -184,14 +222,18 @@ def read_json(path: str | Path) -> dict:
 
 
 def write_image_and_sidecar(path: str | Path, image: np.ndarray, info: dict) -> None:
-    """The EXR (``info`` in its header) and its JSON sidecar: both or neither."""
+    """The EXR (``info`` in its header) and its JSON sidecar: both or neither. Both are
+    written under temporary names first, so a failed write (a full disk) leaves an earlier
+    pair at that path as it was."""
     path = Path(path)
-    write_exr(path, image, info)
+    sidecar = path.with_suffix(".json")
+    json_tmp = _json_to_temporary(sidecar, info)
     try:
-        write_json(path.with_suffix(".json"), info)
+        exr_tmp = _exr_to_temporary(path, image, info)
     except BaseException:
-        path.unlink(missing_ok=True)
+        json_tmp.unlink(missing_ok=True)
         raise
+    _move_into_place([(exr_tmp, path), (json_tmp, sidecar)])
 
 
 def check_output_path(path: str | Path) -> Path:

@@ -1283,8 +1283,8 @@ def _named_assets(node: Any, here: Path, visited: set[int] | None = None) -> Ite
         ):
             try:
                 yield (here / value).resolve()
-            except (OSError, RuntimeError):  # a symlink loop: loading the scene reports it
-                pass
+            except (OSError, RuntimeError, ValueError):  # links that loop, a NUL in the name:
+                pass  # loading the scene reports it
         else:
             yield from _named_assets(value, here, visited)
 
