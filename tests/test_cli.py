@@ -526,6 +526,34 @@ def test_a_setting_the_method_does_not_read_is_refused(tmp_path):
     assert r.returncode == 0 and out.is_file(), r.stderr
 
 
+def test_checks_after_loading_name_where_the_value_is_written(tmp_path):
+    """Checks made once the scene is loaded (Mitsuba's limits, the ray-marching step against
+    the grid) name the file, include or override that wrote the value, as loading's own
+    errors do; they once named the main scene file whatever wrote it."""
+    out = tmp_path / "r.exr"
+    r = pgi("reference", "cbox-fog", "--spp", "1", *small("--set", "media.fog.phase.g=0.9995"),
+            "-o", str(out))  # fmt: skip
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert (
+        "(override 'media.fog.phase.g=0.9995'): media.fog.phase.g = 0.9995: Mitsuba's HG"
+        in r.stderr
+    ), r.stderr
+    r = pgi("validate", "cbox-grid", "--set", "integrator.march_step=1e-9")
+    assert r.returncode == 2, r.stderr
+    assert "(override 'integrator.march_step=1e-9'): integrator.march_step: 1e-09 is below" in (
+        r.stderr
+    )
+    (tmp_path / "media.yaml").write_text(
+        "media: {fog: {type: homogeneous, sigma_t: [1, 0, 1], albedo: 0.8}}\n"
+    )
+    (tmp_path / "scene.yaml").write_text(f"include: [{SCENES / 'cbox' / 'box.yaml'}, media.yaml]\n")
+    r = pgi("reference", str(tmp_path), "--spp", "1",
+            *small("--set", "camera.medium=fog", "-o", str(out)))  # fmt: skip
+    assert r.returncode == 2, r.stderr
+    assert f"{tmp_path / 'media.yaml'}: media.fog.sigma_t = [1.0, 0.0, 1.0]" in r.stderr, r.stderr
+    assert not out.exists()
+
+
 def test_validate_version_reference_and_every_method_succeed(tmp_path):
     """The success paths a user takes first: each writes what it says and exits 0."""
     from renderer.imageio import read_exr

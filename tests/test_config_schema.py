@@ -316,7 +316,7 @@ def test_plan_refuses_a_set_a_render_or_the_reference_would_refuse() -> None:
     with pytest.raises(PlanError, match=r"set \(scene 'cbox'\): .*the Mitsuba reference too"):
         make_plan({**GOOD, "set": ["integrator.estimator=delta"]}, ROOT)
     scenes = [{"name": "cbox", "set": ["integrator.march_step=0.01"]}]
-    with pytest.raises(PlanError, match=r"integrator.march_step=0.01: method mitsuba"):
+    with pytest.raises(PlanError, match=r"integrator.march_step=0.01: Mitsuba does not read"):
         make_plan({**GOOD, "scenes": scenes}, ROOT)
 
 

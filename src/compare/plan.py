@@ -29,7 +29,7 @@ from renderer.imageio import check_folder_can_be_made
 from renderer.methods import check_method_parameters, check_overrides
 from renderer.progressive import snapshot_label
 from renderer.scene import load_scene
-from renderer.scene.loader import format_path
+from renderer.scene.model import format_path
 
 from .metrics import REF_QUALITY_FACTOR
 
@@ -44,7 +44,8 @@ def check_config_files(files: list[Path]) -> None:
     numbers no one meant (`1:30` is 90, `010` is 8)."""
     import yaml
 
-    from renderer.scene.loader import check_yaml_file, format_path
+    from renderer.scene.loader import check_yaml_file
+    from renderer.scene.model import format_path
 
     for file in files:
         try:
@@ -355,7 +356,9 @@ def check_scene(
         scene = _load_once({} if loaded is None else loaded, path, spec.set + extra)
         for medium in scene.media.values():  # the step is checked when the core is built
             if medium.type == "grid":
-                march_step(medium, scene.integrator.march_step, str(path))
+                march_step(
+                    medium, scene.integrator.march_step, scene.where("integrator", "march_step")
+                )
     except PgiError as e:
         raise PlanError(f"{where}: '{spec.name}': {e}") from e
 

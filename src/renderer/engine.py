@@ -69,8 +69,11 @@ def camera_basis(camera: Camera, film: Film) -> tuple[np.ndarray, np.ndarray, np
     return forward, -left * tan_x, up * tan_y
 
 
-def march_step(medium: Medium, integrator_step: float, where: str = "the scene") -> float:
-    """Ray-marching step in world units: the scene's, or half the grid's smallest voxel."""
+def march_step(
+    medium: Medium, integrator_step: float, where: str = "the scene: integrator.march_step"
+) -> float:
+    """Ray-marching step in world units: the scene's, or half the grid's smallest voxel.
+    ``where``: where the step is written, for the message."""
     assert medium.density is not None and medium.to_world is not None
     voxel = float(
         (np.linalg.norm(medium.to_world[:3, :3], axis=0) / np.array(medium.density.shape)).min()
@@ -79,7 +82,7 @@ def march_step(medium: Medium, integrator_step: float, where: str = "the scene")
         return 0.5 * voxel
     if integrator_step < _MIN_MARCH_STEP * voxel:
         raise PgiError(
-            f"{where}: integrator.march_step: {integrator_step:g} is below "
+            f"{where}: {integrator_step:g} is below "
             f"{_MIN_MARCH_STEP:g} of medium {medium.name}'s smallest voxel ({voxel:g}): "
             "ray marching would take hours"
         )
@@ -105,7 +108,7 @@ def _add_medium(core: _core.Scene, m: Medium, scene: Scene, majorant_cell: int) 
             majorant_cell,
         )
         estimator = scene.integrator.estimator
-        step = march_step(m, scene.integrator.march_step, str(scene.path))
+        step = march_step(m, scene.integrator.march_step, scene.where("integrator", "march_step"))
         _core.configure_medium(core, medium_id, _ESTIMATORS[estimator], step)
     if m.phase.type == "tabulated":
         _core.set_phase_table(core, medium_id, np.ascontiguousarray(m.phase.values, np.float64))

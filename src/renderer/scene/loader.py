@@ -44,6 +44,7 @@ from renderer.scene.model import (
     Scene,
     Shape,
     SpotLight,
+    format_path,
 )
 from renderer.volumes import MAX_GRID_SIDE, MAX_VDB_COORD
 
@@ -255,13 +256,6 @@ def check_yaml_file(path: Path) -> tuple[Any, str] | None:
 
 
 # --------------------------------------------------------------------------- key paths, origins
-
-
-def format_path(path: Sequence[str | int]) -> str:
-    out = ""
-    for k in path:
-        out += f"[{k}]" if isinstance(k, int) else (f".{k}" if out else str(k))
-    return out or "(top level)"
 
 
 class _Origins:
@@ -1186,6 +1180,7 @@ def _load_scene(path: str | Path, overrides: Sequence[str]) -> Scene:
         stresses=val.strings(doc.get("stresses", []), ("stresses",)),
         expected_winners=_method_names(val, doc.get("expected_winners", []), ("expected_winners",)),
         shape_origins=[origins.where(("shapes", i)) for i in range(len(shapes))],
+        locate_key=origins.where,
     )  # fmt: skip
 
 

@@ -263,7 +263,8 @@ def to_mitsuba_dict(scene: Scene, integrator: str = "volpath") -> dict[str, Any]
     for name, m in scene.media.items():
         if m.phase.type == "hg" and abs(m.phase.g) > MAX_MITSUBA_HG_G:
             raise PgiError(
-                f"{scene.path}: media.{name}.phase.g = {m.phase.g:g}: Mitsuba's HG sampling is "
+                f"{scene.where('media', name, 'phase', 'g')} = {m.phase.g:g}: Mitsuba's HG "
+                "sampling is "
                 f"biased beyond |g| = {MAX_MITSUBA_HG_G:g} (cbox-fog at g = 0.9999 came out "
                 "36 % dark), so its image would be no reference; pgi's own methods render it"
             )
@@ -271,7 +272,7 @@ def to_mitsuba_dict(scene: Scene, integrator: str = "volpath") -> dict[str, Any]
             # Measured on cbox-fog with sigma_t [0, 1, 3]: volpath returns NaN everywhere, and
             # volpathmis 49 % of our green and 14 % of our blue (with 1e-7 for 0 it agrees).
             raise PgiError(
-                f"{scene.path}: media.{name}.sigma_t = {list(m.sigma_t)}: Mitsuba cannot "
+                f"{scene.where('media', name, 'sigma_t')} = {list(m.sigma_t)}: Mitsuba cannot "
                 "render extinction that is zero in some channels but not all; give those "
                 "channels a small positive value (e.g. 1e-7)"
             )

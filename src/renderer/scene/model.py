@@ -20,6 +20,7 @@ Conventions (each matches Mitsuba 3 and has a parity test):
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -122,6 +123,14 @@ class DirectionalLight:
 Light = PointLight | SpotLight | DirectionalLight
 
 
+def format_path(path: Sequence[str | int]) -> str:
+    """A key path as messages write it: media.fog.phase.g, shapes[3].file."""
+    out = ""
+    for k in path:
+        out += f"[{k}]" if isinstance(k, int) else (f".{k}" if out else str(k))
+    return out or "(top level)"
+
+
 @dataclass(frozen=True)
 class Scene:
     name: str
@@ -138,6 +147,18 @@ class Scene:
     expected_winners: list[str] = field(default_factory=list)  # methods that should win here
     # Per shape, where it is written ("file: shapes[k]", in its own file), for messages.
     shape_origins: list[str] = field(default_factory=list)
+    # Where any key path is written, for checks made after loading (the loader's: the file,
+    # an include or an override, and the key path there); None: the scene file itself.
+    locate_key: Callable[[tuple[str | int, ...]], str] | None = field(
+        default=None, compare=False, repr=False
+    )
+
+    def where(self, *key: str | int) -> str:
+        """Where the value at key path ``key`` is written, as loading errors name it
+        ("scene.yaml (override 'media.fog.phase.g=0.9995'): media.fog.phase.g")."""
+        if self.locate_key is not None:
+            return self.locate_key(key)
+        return f"{self.path}: {format_path(key)}"
 
     def where_shape(self, index: int) -> str:
         """Where shape ``index`` is written, and its name: for an error message."""
