@@ -995,3 +995,16 @@ def test_a_check_that_fails_beside_an_override_names_it(tmp_path):
     msg = expect_error(path, "camera.target", "equals camera.origin",
                        overrides=["film.width=8", f"camera.origin={target}"])  # fmt: skip
     assert f"(after override 'camera.origin={target}')" in msg and "film.width" not in msg
+
+
+def test_an_override_replaced_by_a_later_one_is_not_blamed(tmp_path):
+    """`film.width=64` then `film={height: 32}`: the second override removed the width, so
+    the missing width is the second's doing (the first was once named)."""
+    path = write(tmp_path, BASE)
+    msg = expect_error(path, "film.width", "missing required key",
+                       overrides=["film.width=64", "film={height: 32}"])  # fmt: skip
+    assert "(override 'film={height: 32}')" in msg and "film.width=64" not in msg, msg
+    msg = expect_error(path, "camera.target", "equals camera.origin",
+                       overrides=["camera.origin=[5, 5, 5]", "camera={origin: [0, 0, 0], "
+                                  "target: [0, 0, 0], up: [0, 1, 0], fov: 40}"])  # fmt: skip
+    assert "camera.origin=[5, 5, 5]" not in msg, msg

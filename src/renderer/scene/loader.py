@@ -269,6 +269,13 @@ class _Origins:
     def add(self, merged: KeyPath, file: Path, local: KeyPath, note: str = "") -> None:
         self.parts[merged] = (file, local, note)
 
+    def replaced(self, merged: KeyPath) -> None:
+        """An override wrote ``merged`` whole: what earlier wrote inside it is gone, and so
+        are the earlier overrides of it or inside it."""
+        n = len(merged)
+        self.parts = {p: v for p, v in self.parts.items() if len(p) <= n or p[:n] != merged}
+        self.overrides = [(p, t) for p, t in self.overrides if p[:n] != merged]
+
     def locate(self, path: KeyPath) -> tuple[Path, KeyPath, str]:
         for n in range(len(path), 0, -1):
             if path[:n] in self.parts:
@@ -419,6 +426,7 @@ def _apply_override(doc: dict, text: str, origins: _Origins) -> None:
         else:
             missing = format_path(tokens[: n + 1])
             raise PgiError(f"override {_describe(text)}: {missing} does not exist in the scene")
+    origins.replaced(tuple(tokens))
     for path in [*created, tuple(tokens)]:
         origins.add(path, origins.main, path, f" (override {_describe(text)})")
     origins.overrides.append((tuple(tokens), _describe(text)))
