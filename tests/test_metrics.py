@@ -6,6 +6,7 @@ import json
 import math
 import subprocess
 import sys
+import warnings
 
 import numpy as np
 import pytest
@@ -121,6 +122,19 @@ def test_flip_of_a_dim_reference_is_that_of_the_same_images_brighter() -> None:
     assert r.returncode == 0, r.stdout + r.stderr
     bright, *dim = json.loads(r.stdout)
     assert 0 < bright < 1 and dim == pytest.approx([bright] * 3, rel=1e-4)
+    assert not r.stderr, r.stderr
+
+
+def test_flip_of_a_bright_image_against_a_denormal_reference_says_nothing() -> None:
+    """Scaled up to a peak of 1, a test image 1e40 times a denormal reference overflowed
+    float32 with a warning on stderr; held to float32's range, its FLIP is the error of
+    such a pair, near 1."""
+    rng = np.random.default_rng(0)
+    ref = rng.uniform(size=(16, 16, 3)) * 1e-40
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        got = m.compare_images(rng.uniform(size=(16, 16, 3)), ref)["flip"]
+    assert 0.9 < got <= 1
 
 
 def test_negative_values_accepted() -> None:

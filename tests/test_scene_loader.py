@@ -284,6 +284,17 @@ def test_zero_area_light(tmp_path):
     expect_error(write(tmp_path, doc), "shapes[1]", "zero surface area.*emitter")
 
 
+def test_zero_area_shape_says_whether_its_file_or_its_transform_is_flat(tmp_path):
+    (tmp_path / "line.obj").write_text("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n")
+    doc = edit()
+    doc["shapes"][0] = {"type": "mesh", "file": "line.obj", "material": "white"}
+    expect_error(write(tmp_path, doc), "shapes[0]", r"zero surface area \(its file .*line.obj "
+                 "has no triangle of non-zero area")  # fmt: skip
+    doc = edit()
+    doc["shapes"][0]["transform"] = [{"scale": [1, 0, 1]}]
+    expect_error(write(tmp_path, doc), "shapes[0]", r"zero surface area \(check its transform")
+
+
 @pytest.mark.parametrize(
     ("where", "key"),
     [("material", "shapes[0].material"), ("interior", "shapes[0].interior")],

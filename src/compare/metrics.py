@@ -135,8 +135,11 @@ def _flip(x: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, float]:
         params = {"startExposure": 0.0, "stopExposure": 0.0}
     elif peak < DIM_PEAK:
         # HDR-FLIP exposes both images alike over a range that follows the reference, so
-        # scaling both by one factor leaves it unchanged: bring the peak to 1
-        xf, rf = xf / np.float32(peak), rf / np.float32(peak)
+        # scaling both by one factor leaves it unchanged: bring the peak to 1 (in float64, the
+        # test image held to float32's range: 1e40 times a denormal peak is error 1 anyway)
+        big = np.finfo(np.float32).max
+        xf = np.minimum(xf.astype(np.float64) / peak, big).astype(np.float32)
+        rf = np.minimum(rf.astype(np.float64) / peak, big).astype(np.float32)
     err_map, mean, _ = flip_evaluator.evaluate(
         rf, xf, "HDR", inputsRGB=True, applyMagma=False, computeMeanError=True, parameters=params
     )

@@ -1009,6 +1009,7 @@ def _shape(val: _Validator, i: int, d: Any, materials: dict, media: dict) -> Sha
                 f"+-{MAX_COORDINATE:g}",
             )
     m = val.transform(d.get("transform", []), p + ("transform",))
+    v_file = v
     with np.errstate(over="ignore", invalid="ignore"):
         v = xf.apply_points(m, v)
     if not np.all(np.abs(v) < MAX_COORDINATE):
@@ -1017,7 +1018,12 @@ def _shape(val: _Validator, i: int, d: Any, materials: dict, media: dict) -> Sha
         f = f[:, ::-1].copy()
     emission = val.rgb(d["emission"], p + ("emission",), hi=MAX_LIGHT) if "emission" in d else None
     if len(f) == 0 or primitives.area(v, f) <= 0:
-        what = "an emitter needs area" if emission else "check its transform"
+        if emission:
+            what = "an emitter needs area"
+        elif kind == "mesh" and primitives.area(v_file, f) <= 0:
+            what = f"its file {d['file']} has no triangle of non-zero area"
+        else:
+            what = "check its transform"
         val.fail(p, f"shape has zero surface area ({what})")
 
     def medium_ref(key: str) -> str | None:
