@@ -882,6 +882,21 @@ def test_a_failed_pair_write_leaves_the_earlier_pair_as_it_was(tmp_path, monkeyp
         assert np.array_equal(imageio.read_exr(out), first) and imageio.read_json(
             out.with_suffix(".json")
         ) == {"run": 1}, failing
+    real_replace = imageio.os.replace
+    with monkeypatch.context() as m:  # the sidecar's rename fails after the image's: neither
+        m.setattr(imageio.os, "replace", lambda a, b: real_replace(a, b) if str(b).endswith(
+            ".exr") else (_ for _ in ()).throw(OSError(5, "Input/output error")))  # fmt: skip
+        with pytest.raises(PgiError, match="Input/output error"):
+            imageio.write_image_and_sidecar(out, first * 2, {"run": 2})
+        assert list(tmp_path.iterdir()) == []
+        imageio.write_exr(out, first)
+        with pytest.raises(PgiError, match="Input/output error"):
+            imageio.write_json(out.with_suffix(".json"), {"run": 1})
+        assert [p.name for p in tmp_path.iterdir()] == ["a.exr"]  # a lone file is kept
+        m.setattr(imageio.os, "replace", lambda a, b: (_ for _ in ()).throw(OSError(5, "x")))
+        with pytest.raises(PgiError):
+            imageio.write_exr(out, first * 3)
+        assert np.array_equal(imageio.read_exr(out), first)  # a first failure changes nothing
     imageio.write_image_and_sidecar(out, first * 2, {"run": 2})  # and a good write replaces both
     assert np.array_equal(imageio.read_exr(out), first * 2)
     assert imageio.read_json(out.with_suffix(".json")) == {"run": 2}

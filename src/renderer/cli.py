@@ -73,29 +73,20 @@ def split_sets(items: list[str], command: str = "render") -> tuple[list[str], di
     return overrides, params
 
 
-def _resolved(path: Path) -> Path | None:
-    """``path`` with its links followed, or None where it has no such form (links that loop,
-    a NUL character in the name): no scene can read it, and loading says why."""
-    try:
-        return path.resolve()
-    except (OSError, RuntimeError, ValueError):
-        return None
-
-
 def _refuse_overwriting_the_scene(
     scene: str, outputs: list[Path], overrides: Sequence[str] = ()
 ) -> None:
     """No image or sidecar may replace a file the scene reads (its YAML, meshes, grids, and
     what the --set overrides name)."""
-    from .scene.loader import scene_sources
+    from .scene.loader import resolved, scene_sources
 
     try:
-        sources = {_resolved(p) for p in scene_sources(scene, overrides)} - {None}
+        sources = set(scene_sources(scene, overrides))
     except PgiError:  # no such scene: loading it says so
         return
     for out in outputs:
         for target in (out, out.with_suffix(".json")):
-            if _resolved(target) in sources:
+            if resolved(target) in sources:
                 raise PgiError(f"-o {out}: would overwrite {target}, which the scene reads")
 
 

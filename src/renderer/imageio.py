@@ -191,25 +191,28 @@ def _json_to_temporary(path: Path, data: dict) -> Path:
     tmp = _temporary(path)
     try:
         tmp.write_text(json.dumps(data, indent=2, sort_keys=True, default=str) + "\n")
-    except OSError as e:
+    except BaseException as e:
         tmp.unlink(missing_ok=True)
-        raise PgiError(f"{path}: cannot write: {e.strerror or e}") from None
-    except BaseException:
-        tmp.unlink(missing_ok=True)
+        if isinstance(e, OSError):
+            raise PgiError(f"{path}: cannot write: {e.strerror or e}") from None
         raise
     return tmp
 
 
 def _move_into_place(files: list[tuple[Path, Path]]) -> None:
     """Each (temporary, target) renamed over its target. Should a rename fail (the target a
-    folder, say), none of the targets is left, rather than a pair of which one is stale."""
+    folder, say) after an earlier one of the set succeeded, none of the targets is left,
+    rather than a pair of which one is stale; a first failure leaves them all as they were."""
+    done = 0
     try:
         for tmp, target in files:
             os.replace(tmp, target)
+            done += 1
     except OSError as e:
-        for _, target in files:
-            if target.is_file():
-                target.unlink()
+        if done:
+            for _, moved in files:
+                if moved.is_file():
+                    moved.unlink()
         raise PgiError(f"{target}: cannot write: {e.strerror or e}") from None
     finally:
         for tmp, _ in files:

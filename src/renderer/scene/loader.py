@@ -1193,7 +1193,6 @@ def _load_scene(path: str | Path, overrides: Sequence[str]) -> Scene:
         description=val.string(doc.get("description", ""), ("description",)).strip(),
         stresses=val.strings(doc.get("stresses", []), ("stresses",)),
         expected_winners=_method_names(val, doc.get("expected_winners", []), ("expected_winners",)),
-        shape_origins=[origins.where(("shapes", i)) for i in range(len(shapes))],
         locate_key=origins.where,
     )  # fmt: skip
 
@@ -1274,6 +1273,15 @@ def scene_content_digest(path: str | Path, overrides: Sequence[str] = ()) -> str
     return h.hexdigest()[:16]
 
 
+def resolved(path: Path) -> Path | None:
+    """``path`` with its links followed, or None where it has no such form (links that loop,
+    a NUL character in the name): no scene can read it, and loading says why."""
+    try:
+        return path.resolve()
+    except (OSError, RuntimeError, ValueError):
+        return None
+
+
 def _named_assets(node: Any, here: Path, visited: set[int] | None = None) -> Iterable[Path]:
     """Paths a scene document names: ``file:`` values, and a grid's ``density`` given as a
     .npy/.vdb file name. Each list or mapping is visited once: YAML aliases can make a
@@ -1290,10 +1298,8 @@ def _named_assets(node: Any, here: Path, visited: set[int] | None = None) -> Ite
         if isinstance(value, str) and (
             key == "file" or (key == "density" and value.lower().endswith((".npy", ".vdb")))
         ):
-            try:
-                yield (here / value).resolve()
-            except (OSError, RuntimeError, ValueError):  # links that loop, a NUL in the name:
-                pass  # loading the scene reports it
+            if (file := resolved(here / value)) is not None:  # else loading reports it
+                yield file
         else:
             yield from _named_assets(value, here, visited)
 

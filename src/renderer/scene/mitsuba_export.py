@@ -264,9 +264,9 @@ def to_mitsuba_dict(scene: Scene, integrator: str = "volpath") -> dict[str, Any]
         if m.phase.type == "hg" and abs(m.phase.g) > MAX_MITSUBA_HG_G:
             raise PgiError(
                 f"{scene.where('media', name, 'phase', 'g')} = {m.phase.g:g}: Mitsuba's HG "
-                "sampling is "
-                f"biased beyond |g| = {MAX_MITSUBA_HG_G:g} (cbox-fog at g = 0.9999 came out "
-                "36 % dark), so its image would be no reference; pgi's own methods render it"
+                f"sampling is biased beyond |g| = {MAX_MITSUBA_HG_G:g} (cbox-fog at g = 0.9999 "
+                "came out 36 % dark), so its image would be no reference; pgi's own methods "
+                "render it"
             )
         if 0 in m.sigma_t and any(m.sigma_t):
             # Measured on cbox-fog with sigma_t [0, 1, 3]: volpath returns NaN everywhere, and

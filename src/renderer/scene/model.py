@@ -145,8 +145,6 @@ class Scene:
     description: str = ""
     stresses: list[str] = field(default_factory=list)  # light paths this scene exists to test
     expected_winners: list[str] = field(default_factory=list)  # methods that should win here
-    # Per shape, where it is written ("file: shapes[k]", in its own file), for messages.
-    shape_origins: list[str] = field(default_factory=list)
     # Where any key path is written, for checks made after loading (the loader's: the file,
     # an include or an override, and the key path there); None: the scene file itself.
     locate_key: Callable[[tuple[str | int, ...]], str] | None = field(
@@ -162,12 +160,8 @@ class Scene:
 
     def where_shape(self, index: int) -> str:
         """Where shape ``index`` is written, and its name: for an error message."""
-        where = (
-            self.shape_origins[index]
-            if index < len(self.shape_origins)
-            else f"{self.path}: shapes[{index}]"
-        )
         name = self.shapes[index].name
+        where = self.where("shapes", index)
         return f"{where} ({name})" if name else where
 
     @property
