@@ -122,7 +122,7 @@ def test_surface_photons_count_only_on_the_surface_they_lie_on():
 
     r = 0.02
     x = np.array([0.0, -1 + 0.4 * r, -1.0])  # on the back wall, 0.4 r above the floor
-    # the wall triangle that holds x, and the other one
+    # the wall triangle that holds x, and the other one (coplanar)
     bary = [np.linalg.lstsq((tris[t, 1:] - tris[t, 0]).T, x - tris[t, 0], rcond=None)[0]
             for t in wall]  # fmt: skip
     here = next(i for i, b in enumerate(bary) if b.min() >= 0 and b.sum() <= 1)
@@ -130,7 +130,8 @@ def test_surface_photons_count_only_on_the_surface_they_lie_on():
     front = np.array([0.3, 0.4, 0.866])  # arrives from the wall's front, and the floor's
     cases = {  # name: (position, triangle, wi, counts)
         "on the wall": (x + [0.3 * r, 0.2 * r, 0], on, front, True),
-        "on the wall's other triangle": (x + [-0.5 * r, 0.1 * r, 0], other, front, True),
+        # the rule asks the photon's triangle which way it faces, not which triangle it is
+        "of the wall's other triangle": (x + [-0.5 * r, 0.1 * r, 0], other, front, True),
         "on the floor": (x + [0.1 * r, -0.4 * r, 0.3 * r], floor[0], front, False),
         "from behind the wall": (x + [0.1 * r, 0.1 * r, 0], on, -front, False),
         "beyond the radius": (x + [1.01 * r, 0, 0], on, front, False),
