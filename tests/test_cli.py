@@ -883,18 +883,26 @@ def test_a_failed_pair_write_leaves_the_earlier_pair_as_it_was(tmp_path, monkeyp
             out.with_suffix(".json")
         ) == {"run": 1}, failing
     real_replace = imageio.os.replace
-    with monkeypatch.context() as m:  # the sidecar's rename fails after the image's: neither
-        m.setattr(imageio.os, "replace", lambda a, b: real_replace(a, b) if str(b).endswith(
-            ".exr") else (_ for _ in ()).throw(OSError(5, "Input/output error")))  # fmt: skip
-        with pytest.raises(PgiError, match="Input/output error"):
-            imageio.write_image_and_sidecar(out, first * 2, {"run": 2})
-        assert list(tmp_path.iterdir()) == []
+
+    def replace_only_images(src, dst):  # a rename that fails for everything but an .exr
+        if not str(dst).endswith(".exr"):
+            raise OSError(5, "Input/output error")
+        real_replace(src, dst)
+
+    def replace_nothing(src, dst):
+        raise OSError(5, "Input/output error")
+
+    with monkeypatch.context() as m:
+        m.setattr(imageio.os, "replace", replace_only_images)
+        with pytest.raises(PgiError, match="Input/output error"):  # the image moved, then the
+            imageio.write_image_and_sidecar(out, first * 2, {"run": 2})  # sidecar failed:
+        assert list(tmp_path.iterdir()) == []  # neither is left
         imageio.write_exr(out, first)
         with pytest.raises(PgiError, match="Input/output error"):
             imageio.write_json(out.with_suffix(".json"), {"run": 1})
         assert [p.name for p in tmp_path.iterdir()] == ["a.exr"]  # a lone file is kept
-        m.setattr(imageio.os, "replace", lambda a, b: (_ for _ in ()).throw(OSError(5, "x")))
-        with pytest.raises(PgiError):
+        m.setattr(imageio.os, "replace", replace_nothing)
+        with pytest.raises(PgiError, match="Input/output error"):
             imageio.write_exr(out, first * 3)
         assert np.array_equal(imageio.read_exr(out), first)  # a first failure changes nothing
     imageio.write_image_and_sidecar(out, first * 2, {"run": 2})  # and a good write replaces both
