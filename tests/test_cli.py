@@ -95,7 +95,10 @@ def test_render_spp_budget_and_image_content(tmp_path):
     assert r.returncode == 0, r.stderr
     image = read_exr(out)
     assert image.shape == (16, 16, 3) and np.all(np.isfinite(image)) and image.mean() > 0
-    assert json.loads(out.with_suffix(".json").read_text())["spp"] == 4
+    info = json.loads(out.with_suffix(".json").read_text())
+    assert info["spp"] == 4
+    # Without --threads a render uses every core it may, as `pgi reference` does.
+    assert info["threads"] == len(os.sched_getaffinity(0))
 
 
 def test_methods_lists_pt_and_mitsuba():

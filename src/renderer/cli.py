@@ -93,7 +93,7 @@ def _refuse_overwriting_the_scene(
 def cmd_render(args: argparse.Namespace) -> int:
     from .imageio import check_output_path
     from .methods import check_overrides
-    from .progressive import RenderSettings, render, snapshot_path
+    from .progressive import RenderSettings, available_cores, render, snapshot_path
     from .scene import load_scene
 
     out = check_output_path(args.output)
@@ -112,7 +112,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     settings = RenderSettings(
         method=args.method,
         seed=args.seed,
-        threads=args.threads,
+        threads=args.threads or available_cores(),
         time_budget=args.time,
         spp=args.spp,
         snapshots=args.snapshots or (),
@@ -336,7 +336,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="render-time budget in seconds (the render ends at the iteration end nearest it)",
     )
     r.add_argument("--spp", type=_positive(int), help="stop after this many samples per pixel")
-    r.add_argument("--threads", type=_positive(int), default=1, help="worker threads (default 1)")
+    r.add_argument(
+        "--threads", type=_positive(int), help="worker threads (default: all available cores)"
+    )
     r.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
     r.add_argument(
         "--snapshots",
