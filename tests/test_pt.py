@@ -325,3 +325,15 @@ def test_ray_buffers_the_kernels_write_are_never_silently_copied(method_id, spoi
     for write in _ray_writers(method_id):
         with pytest.raises(TypeError, match="incompatible function arguments"):
             write(*_SPOILED_RAY_BUFFERS[spoil](batch))
+
+
+def test_a_path_that_carries_nothing_ends():
+    """In a box whose every surface is black, each camera path ends where it first lands:
+    its throughput is zero, so tracing it on (until rr_depth, as before) would add nothing.
+    One camera ray per sample is all that is traced, and the lamp is still seen."""
+    black = [f"materials.{m}.reflectance=0" for m in ("white", "red", "green")]
+    scene = load_small("cbox", 32, 32, tuple(black))
+    method = PathTracing(scene, seed=1, threads=2, params={"spp_per_wave": 1})
+    method.run_iteration(0)
+    assert method.stats()["rays"] == 32 * 32
+    assert method.image().max() > 0

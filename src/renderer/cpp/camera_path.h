@@ -139,12 +139,9 @@ public:
             double f = phase_eval(m.phase, wo, ls.wi);
             next_event(p, r, receiver, ls, RGB(f), f, RayStart{x}, p.medium);
         }
-        double pdf, u1 = p.rng.next(), u2 = p.rng.next();
-        p.dir = phase_sample(m.phase, wo, u1, u2, pdf);  // exact sampling: weight 1
+        p.prev_pdf = advance_by_phase(m, p, x);
         p.prev_pos = x;
-        p.prev_pdf = pdf;
         p.prev_delta = false;
-        start_path_at(p, x);
         p.alive = russian_roulette(p);
     }
     // NEE at a non-delta surface vertex (the event at x already counted).
@@ -168,14 +165,13 @@ public:
         p.eta2 *= bs.eta * bs.eta;
         p.alive = russian_roulette(p);
     }
-    // Mitsuba's rule: after rr_depth real events, continue with probability
-    // min(max(throughput) * eta^2, 0.95) and divide by it.
+    // Mitsuba's rule: a path that carries nothing ends (it could add nothing more, and
+    // would trace rays until rr_depth); after rr_depth real events, survive_roulette on
+    // max(throughput) * eta^2.
     bool russian_roulette(CameraPath &p) const {
+        if (is_black(p.throughput)) return false;
         if (p.depth <= rr_depth_) return true;
-        double q = std::min(max_component(p.throughput) * p.eta2, 0.95);
-        if (!(p.rng.next() < q)) return false;
-        p.throughput = p.throughput / q;
-        return true;
+        return survive_roulette(p.throughput, max_component(p.throughput) * p.eta2, p.rng);
     }
 
 private:

@@ -253,11 +253,7 @@ void LightPathTracer::scatter_in_medium(LightPathState &p, size_t slot, const Ve
         p.alive = false;
         return;
     }
-    double pdf;
-    double u1 = p.rng.next(), u2 = p.rng.next();
-    // Phase functions are symmetric and sampled exactly: weight 1.
-    p.dir = phase_sample(m.phase, wi, u1, u2, pdf);
-    start_path_at(p, x);
+    advance_by_phase(m, p, x);
     p.after_specular = false;
     p.alive = russian_roulette(p);
 }
@@ -292,14 +288,11 @@ void LightPathTracer::scatter_on_surface(LightPathState &p, size_t slot, int tri
     p.alive = russian_roulette(p);
 }
 
-// After rr_depth real events, continue with probability min(max(power) / max(emitted), 0.95).
+// After rr_depth real events, survive_roulette on max(power) / max(emitted).
 bool LightPathTracer::russian_roulette(LightPathState &p) {
     if (is_black(p.power)) return false;
     if (p.depth <= rr_depth_) return true;
-    double q = std::min(max_component(p.power) * p.inv_initial, 0.95);
-    if (!(p.rng.next() < q)) return false;
-    p.power = p.power / q;
-    return true;
+    return survive_roulette(p.power, max_component(p.power) * p.inv_initial, p.rng);
 }
 
 void LightPathTracer::collect(size_t slots) {

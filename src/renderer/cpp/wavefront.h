@@ -78,6 +78,27 @@ BsdfSample advance_by_bsdf(const Scene &scene, Path &p, RGB &carried, int tri, c
     return bs;
 }
 
+// The phase step of every path at a real collision x in medium m: a direction for
+// wo = -p.dir sampled exactly (phase functions are symmetric, so the weight is 1 for
+// radiance and importance alike), and the path's next ray from x. Returns the sample's
+// solid-angle pdf; the MIS state and flags kept from it stay with the caller.
+template <typename Path>
+double advance_by_phase(const Medium &m, Path &p, const Vec3 &x) {
+    double pdf, u1 = p.rng.next(), u2 = p.rng.next();
+    p.dir = phase_sample(m.phase, -p.dir, u1, u2, pdf);
+    start_path_at(p, x);
+    return pdf;
+}
+
+// Russian roulette's draw for every path, as Mitsuba's volpath plays it: the path goes on
+// with probability min(q, 0.95) and `carried` (throughput or power) is divided by it.
+inline bool survive_roulette(RGB &carried, double q, Sampler &rng) {
+    q = std::min(q, 0.95);
+    if (!(rng.next() < q)) return false;
+    carried = carried / q;
+    return true;
+}
+
 // Ray buffers owned by Python: origins (n, 3), directions (n, 3), tmax (n).
 struct RayBuffers {
     float *org = nullptr, *dir = nullptr, *tmax = nullptr;
