@@ -1,6 +1,6 @@
 // Camera paths: the state and the steps shared by every method that traces
 // from the camera (pt's lanes, and the gathering paths of ppb; ppb and pm also
-// use the whole-wave bookkeeping below: start_camera_wave, write_alive_rays).
+// use the whole-wave bookkeeping below: start_camera_wave).
 // Each step is one piece of volumetric path tracing with NEE and MIS (Veach 1997, ch. 9), with Mitsuba volpath's conventions: depth
 // counts real scattering events, null crossings are free, Russian roulette
 // after rr_depth events on max(throughput) * eta^2.
@@ -58,19 +58,25 @@ void start_camera_path(Path &p, const Camera &cam, int64_t pixel, Sampler rng, c
     out.put(k, p.pos, p.dir, kInf);
 }
 
-// Starts a wave of spp camera paths per pixel: path i samples pixel i % npix,
-// its random stream keyed by (stream_seed, sample index, pixel). Fills `active`.
+// Starts path number `path` of wave `iteration`, a wave of spp samples per pixel, writing
+// its first ray to slot k: it samples pixel path % npix, with its random stream keyed by
+// (stream_seed, sample index, pixel), so a pixel's samples do not depend on the wave size.
+template <typename Path>
+void start_camera_sample(Path &p, const Camera &cam, int64_t path, int64_t iteration, int spp, uint64_t stream_seed,
+                         const RayBuffers &out, size_t k) {
+    const int64_t npix = int64_t(cam.width) * cam.height;
+    const int64_t pixel = path % npix, sample = iteration * spp + path / npix;
+    start_camera_path(p, cam, pixel, Sampler(stream_key(stream_seed, uint64_t(sample), uint64_t(pixel))), out, k);
+}
+
+// Starts a whole wave of spp camera paths per pixel (start_camera_sample). Fills `active`.
 template <typename Path>
 size_t start_camera_wave(std::vector<Path> &paths, std::vector<int32_t> &active, const Camera &cam,
                          int64_t iteration, int spp, uint64_t stream_seed, const RayBuffers &out, int threads) {
-    const int64_t npix = int64_t(cam.width) * cam.height;
     active.resize(paths.size());
 #pragma omp parallel for schedule(static) num_threads(threads)
     for (int64_t i = 0; i < int64_t(paths.size()); ++i) {
-        int64_t pixel = i % npix;
-        int64_t sample = iteration * spp + i / npix;
-        Sampler rng(stream_key(stream_seed, uint64_t(sample), uint64_t(pixel)));
-        start_camera_path(paths[i], cam, pixel, rng, out, size_t(i));
+        start_camera_sample(paths[i], cam, i, iteration, spp, stream_seed, out, size_t(i));
         active[i] = int32_t(i);
     }
     return active.size();
@@ -128,6 +134,17 @@ public:
         r.receiver = receiver;
         r.live = !is_black(r.contribution);
     }
+    // Free flight through the path's medium towards the surface at t_hit: the throughput
+    // takes the flight's weight, and a real collision before the surface scatters the path
+    // there (scatter_in_medium). True when it did.
+    bool fly_through_medium(CameraPath &p, ShadowRay &r, int64_t receiver, double t_hit, MediumStats &stats) const {
+        FreeFlight ff = sample_free_flight(scene_.media[p.medium], segment_origin(p), p.dir, t_hit + p.lead, p.rng,
+                                           stats, p.spectral);
+        p.throughput *= ff.weight;
+        if (!ff.scattered) return false;
+        scatter_in_medium(p, r, receiver, segment_point(p, ff.t));
+        return true;
+    }
     // Real collision at x: NEE by the phase function, then a phase-sampled direction.
     void scatter_in_medium(CameraPath &p, ShadowRay &r, int64_t receiver, const Vec3 &x) const {
         r.live = false;
@@ -144,13 +161,17 @@ public:
         p.prev_delta = false;
         p.alive = russian_roulette(p);
     }
-    // NEE at a non-delta surface vertex (the event at x already counted).
-    void next_event_on_surface(CameraPath &p, ShadowRay &r, int64_t receiver, int tri, const Vec3 &x) const {
+    // NEE at a non-delta surface vertex (the event at x already counted). Without `mis` the
+    // light sample takes full weight: for a path that ends here, no BSDF-sampled emission
+    // competes with it.
+    void next_event_on_surface(CameraPath &p, ShadowRay &r, int64_t receiver, int tri, const Vec3 &x,
+                               bool mis = true) const {
         const Triangle &T = scene_.triangles[tri];
         const Material &mat = scene_.materials[T.material];
         LightSample ls = scene_.sample_light(x, p.rng);
         if (!ls.valid) return;
         Vec3 wo = -p.dir;
+        if (!mis) ls.delta = true;  // power heuristic weight 1
         next_event(p, r, receiver, ls, bsdf_eval(mat, T.n, wo, ls.wi), bsdf_pdf(mat, T.n, wo, ls.wi),
                    scene_.spawn(x, tri, ls.wi), T.medium_after(p.medium, ls.wi));
     }
@@ -179,15 +200,6 @@ private:
     DepthLimit depth_;
     int rr_depth_;
 };
-
-// Keeps the paths still alive (in order) and writes their extension rays.
-template <typename Path>
-size_t write_alive_rays(std::vector<int32_t> &active, const std::vector<Path> &paths, const RayBuffers &out,
-                        int threads) {
-    return compact_in_order(
-        active, threads, [&](int32_t i) { return paths[i].alive; },
-        [&](int64_t k, int32_t i) { out.put(size_t(k), paths[i].pos, paths[i].dir, kInf); });
-}
 
 // Adds each path's radiance to its pixel, in path order (deterministic).
 template <typename Path>

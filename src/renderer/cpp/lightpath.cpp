@@ -1,6 +1,7 @@
 // Light-path tracing (see lightpath.h for the API and the meaning of records).
 #include "lightpath.h"
 
+#include <numeric>
 #include <stdexcept>
 #include <string>
 
@@ -58,20 +59,13 @@ size_t LightPathTracer::begin_iteration(int64_t iteration, const RayBuffers &out
         p = LightPathState();
         p.rng = Sampler(stream_key(seed_ ^ kLightStreamTag, uint64_t(iteration), uint64_t(i)));
         p.spectral.hero = hero_channel(p.rng);
-        emit(p, size_t(i), i);
+        emit(p, size_t(i));
     }
     paths_traced_ += n;
     collect(n);
-    size_t k = 0;
     active_.resize(n);
-    for (size_t i = 0; i < n; ++i)
-        if (paths_[i].alive) active_[k++] = int32_t(i);
-    active_.resize(k);
-    for (size_t j = 0; j < k; ++j) {
-        const LightPathState &p = paths_[active_[j]];
-        out.put(j, p.pos, p.dir, kInf);
-    }
-    return k;
+    std::iota(active_.begin(), active_.end(), 0);
+    return next_rays(out);
 }
 
 // A path from a point or spot light starts its clearance out along its direction, as
@@ -137,7 +131,7 @@ EmissionSample sample_emission(const Scene &scene, const double u[6]) {
     return s;
 }
 
-void LightPathTracer::emit(LightPathState &p, size_t slot, int64_t path) {
+void LightPathTracer::emit(LightPathState &p, size_t slot) {
     const Scene &scene = *scene_;
     double u[6];
     for (double &v : u) v = p.rng.next();
@@ -147,17 +141,10 @@ void LightPathTracer::emit(LightPathState &p, size_t slot, int64_t path) {
     if (l.type == LightType::Area) {
         const Triangle &T = scene.triangles[e.triangle];
         if (record_vertices_) {
-            LightVertex &v = slot_vertex_[slot];
-            v = LightVertex();
-            v.pos = e.pos;
-            v.wi = T.n;
+            LightVertex &v = record_vertex(slot, p, VertexKind::Emission, e.pos, T.n);
             v.power = e.vertex_power;
-            v.path = int32_t(path);
             v.triangle = e.triangle;
             v.medium = T.transition ? T.exterior : emission_medium_triangle_[e.triangle];
-            v.depth = 0;
-            v.kind = VertexKind::Emission;
-            slot_has_vertex_[slot] = 1;
         }
         if (!e.has_direction) return;
         start_path_at(p, scene.spawn(e.pos, e.triangle, e.dir));
@@ -236,19 +223,7 @@ void LightPathTracer::scatter_in_medium(LightPathState &p, size_t slot, const Ve
     const Medium &m = scene_->media[p.medium];
     ++p.depth;
     Vec3 wi = -p.dir;
-    if (record_vertices_ && depth_.allows(p.depth)) {
-        LightVertex &v = slot_vertex_[slot];
-        v = LightVertex();
-        v.pos = x;
-        v.wi = wi;
-        v.power = p.power;
-        v.path = int32_t(&p - paths_.data());
-        v.medium = p.medium;
-        v.depth = int16_t(p.depth);
-        v.kind = VertexKind::Medium;
-        v.after_specular = p.after_specular;
-        slot_has_vertex_[slot] = 1;
-    }
+    if (record_vertices_ && depth_.allows(p.depth)) record_vertex(slot, p, VertexKind::Medium, x, wi);
     if (!depth_.allows(p.depth + 1)) {
         p.alive = false;
         return;
@@ -263,20 +238,8 @@ void LightPathTracer::scatter_on_surface(LightPathState &p, size_t slot, int tri
     const Material &mat = scene_->materials[T.material];
     ++p.depth;
     Vec3 wi = -p.dir;
-    if (record_vertices_ && !mat.is_delta() && dot(wi, T.n) > 0 && depth_.allows(p.depth)) {
-        LightVertex &v = slot_vertex_[slot];
-        v = LightVertex();
-        v.pos = x;
-        v.wi = wi;
-        v.power = p.power;
-        v.path = int32_t(&p - paths_.data());
-        v.triangle = tri;
-        v.medium = p.medium;
-        v.depth = int16_t(p.depth);
-        v.kind = VertexKind::Surface;
-        v.after_specular = p.after_specular;
-        slot_has_vertex_[slot] = 1;
-    }
+    if (record_vertices_ && !mat.is_delta() && dot(wi, T.n) > 0 && depth_.allows(p.depth))
+        record_vertex(slot, p, VertexKind::Surface, x, wi).triangle = tri;
     if (!depth_.allows(p.depth + 1)) {
         p.alive = false;
         return;
@@ -295,6 +258,24 @@ bool LightPathTracer::russian_roulette(LightPathState &p) {
     return survive_roulette(p.power, max_component(p.power) * p.inv_initial, p.rng);
 }
 
+// Slot `slot`'s vertex: path p at x, arrived from wi, with its power, medium, depth and
+// specular flag as they are now; the caller adds what its kind needs (a triangle).
+LightVertex &LightPathTracer::record_vertex(size_t slot, const LightPathState &p, VertexKind kind, const Vec3 &x,
+                                            const Vec3 &wi) {
+    LightVertex &v = slot_vertex_[slot];
+    v = LightVertex();
+    v.pos = x;
+    v.wi = wi;
+    v.power = p.power;
+    v.path = int32_t(&p - paths_.data());
+    v.medium = p.medium;
+    v.depth = int16_t(p.depth);
+    v.kind = kind;
+    v.after_specular = p.after_specular;
+    slot_has_vertex_[slot] = 1;
+    return v;
+}
+
 void LightPathTracer::collect(size_t slots) {
     for (size_t k = 0; k < slots; ++k) {
         if (slot_has_segment_[k]) segments_.push_back(slot_segment_[k]);
@@ -304,15 +285,7 @@ void LightPathTracer::collect(size_t slots) {
 }
 
 size_t LightPathTracer::next_rays(const RayBuffers &out) {
-    size_t n = 0;
-    for (int32_t i : active_)
-        if (paths_[i].alive) active_[n++] = i;
-    active_.resize(n);
-    for (size_t k = 0; k < n; ++k) {
-        const LightPathState &p = paths_[active_[k]];
-        out.put(k, p.pos, p.dir, kInf);
-    }
-    return n;
+    return write_alive_rays(active_, paths_, out, threads_);
 }
 
 }  // namespace pgi

@@ -151,10 +151,11 @@ public:
     }
 
 private:
-    void emit(LightPathState &p, size_t slot, int64_t path);
+    void emit(LightPathState &p, size_t slot);
     void scatter_in_medium(LightPathState &p, size_t slot, const Vec3 &x);
     void scatter_on_surface(LightPathState &p, size_t slot, int tri, const Vec3 &x);
     bool russian_roulette(LightPathState &p);
+    LightVertex &record_vertex(size_t slot, const LightPathState &p, VertexKind kind, const Vec3 &x, const Vec3 &wi);
     void collect(size_t slots);  // appends per-slot records in slot order
     void check_capacity() const;
 

@@ -117,14 +117,9 @@ size_t PhotonBeams::shade(const Hits &hits) {
             const Medium &m = scene.media[p.medium];
             if (!p.gathering) {
                 // After a diffuse surface: path tracing, medium scattering included (as pt).
-                FreeFlight ff =
-                    sample_free_flight(m, segment_origin(p), p.dir, t_hit + p.lead, p.rng, local, p.spectral);
+                bool scattered = steps_.fly_through_medium(p, shadow_[k], index, t_hit, local);
                 lookups += local.density_lookups;
-                p.throughput *= ff.weight;
-                if (ff.scattered) {
-                    steps_.scatter_in_medium(p, shadow_[k], index, segment_point(p, ff.t));
-                    continue;
-                }
+                if (scattered) continue;
             } else if (m.type == MediumType::Homogeneous) {
                 // Gather beams along the whole segment, then carry the transmittance to the surface.
                 p.radiance += p.throughput * gather(p, t_hit + p.lead, local, pairs);
@@ -171,15 +166,7 @@ void PhotonBeams::scatter_on_surface(BeamGatherPath &p, size_t slot, int tri, co
     const int64_t index = int64_t(&p - paths_.data());
     if (surface_photons_ && !mat.is_delta()) {
         // The path ends here: direct light by NEE (full weight), the rest by photons.
-        LightSample ls = scene_->sample_light(x, p.rng);
-        if (ls.valid) {
-            Vec3 wo = -p.dir;
-            LightSample full = ls;
-            full.pdf = 0;
-            full.delta = true;  // weight 1: no BSDF-sampled emission competes with it
-            steps_.next_event(p, shadow, index, full, bsdf_eval(mat, T.n, wo, ls.wi), 0,
-                              scene_->spawn(x, tri, ls.wi), T.medium_after(p.medium, ls.wi));
-        }
+        steps_.next_event_on_surface(p, shadow, index, tri, x, /*mis=*/false);
         p.radiance += p.throughput * gather_photons(p, tri, x);
         p.alive = false;
         return;

@@ -80,6 +80,11 @@ public:
     // Pass 1: the beams of this iteration's light paths, with the iteration's radius.
     void build_beams(const LightPathTracer &light, int64_t iteration, double max_piece_length);
     double radius(int64_t iteration) const { return schedule_.radius(iteration); }
+    // The radius schedule of each blur: the beams' (1D), then the surface photons' (2D) if any.
+    std::vector<RadiusSchedule> schedules() const {
+        if (surface_photons_) return {schedule_, surface_schedule_};
+        return {schedule_};
+    }
     double surface_radius(int64_t iteration) const {
         return surface_photons_ ? surface_schedule_.radius(iteration) : 0.0;
     }

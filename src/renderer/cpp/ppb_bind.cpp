@@ -80,6 +80,12 @@ void bind_ppb(nb::module_ &m) {
         .def("radius", &PhotonBeams::radius, "iteration"_a)
         .def("surface_radius", &PhotonBeams::surface_radius, "iteration"_a)
         .def("set_surface_photons", &PhotonBeams::set_surface_photons, "radius"_a, "alpha"_a)
+        .def_prop_ro("kernels",
+                     [](const PhotonBeams &pb) {
+                         nb::list out;  // (alpha, dimension) of each blur, as the schedules run them
+                         for (const RadiusSchedule &s : pb.schedules()) out.append(nb::make_tuple(s.alpha, s.dimension));
+                         return out;
+                     })
         .def_prop_ro("photons_stored", [](const PhotonBeams &pb) { return pb.stats().photons; })
         .def_prop_ro("capacity", &PhotonBeams::capacity)
         .def(

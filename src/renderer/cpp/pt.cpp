@@ -65,7 +65,6 @@ void PathTracerLane::reset() {
 size_t PathTracerLane::next_rays(const RayBuffers &out) {
     PathTracer &pt = owner_;
     const Camera &cam = pt.scene_->camera;
-    const int64_t npix = int64_t(cam.width) * cam.height;
     if (out.capacity < active_.size()) throw std::invalid_argument("pt next_rays: ray buffers too small");
     size_t kept = 0;
     for (size_t j = 0; j < active_.size(); ++j) {  // in place: kept <= j
@@ -86,9 +85,7 @@ size_t PathTracerLane::next_rays(const RayBuffers &out) {
             if (n == 0) continue;  // the wave has no path left to start
         }
         path = claimed_++;
-        const int64_t pixel = path % npix, sample = pt.iteration_ * pt.spp_per_wave_ + path / npix;
-        start_camera_path(p, cam, pixel, Sampler(stream_key(pt.seed_, uint64_t(sample), uint64_t(pixel))), out,
-                          kept);
+        start_camera_sample(p, cam, path, pt.iteration_, pt.spp_per_wave_, pt.seed_, out, kept);
         active_[kept++] = s;
     }
     active_.resize(kept);
@@ -109,16 +106,7 @@ size_t PathTracerLane::shade(const Hits &hits) {
         double t_hit = tri >= 0 ? double(hits.tfar[k]) : kInf;
 
         // Medium: a real collision before the surface scatters the path there.
-        if (p.medium >= 0) {
-            FreeFlight ff =
-                sample_free_flight(scene.media[p.medium], segment_origin(p), p.dir, t_hit + p.lead, p.rng, stats_,
-                                   p.spectral);
-            p.throughput *= ff.weight;
-            if (ff.scattered) {
-                steps.scatter_in_medium(p, shadow, slot, segment_point(p, ff.t));
-                continue;
-            }
-        }
+        if (p.medium >= 0 && steps.fly_through_medium(p, shadow, slot, t_hit, stats_)) continue;
         Vec3 x;
         if (!steps.reach_surface(p, tri, hits.u[k], hits.v[k], x)) continue;
         const Material &mat = scene.materials[scene.triangles[tri].material];

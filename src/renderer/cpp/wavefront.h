@@ -190,6 +190,16 @@ size_t compact_in_order(std::vector<int32_t> &items, int threads, Keep &&keep, E
     return total;
 }
 
+// Keeps the paths still alive (in order) and writes their extension rays: every wave of
+// camera or light paths ends its bounce with it.
+template <typename Path>
+size_t write_alive_rays(std::vector<int32_t> &active, const std::vector<Path> &paths, const RayBuffers &out,
+                        int threads) {
+    return compact_in_order(
+        active, threads, [&](int32_t i) { return paths[i].alive; },
+        [&](int64_t k, int32_t i) { out.put(size_t(k), paths[i].pos, paths[i].dir, kInf); });
+}
+
 // Shadow rays of one pass, one slot per work item. Slot storage is kept from
 // pass to pass and never constructed again (a wave opens tens of thousands of
 // slots per bounce): a kernel must set `live` in every slot it opens. Rays

@@ -133,8 +133,9 @@ class ProgressivePhotonBeams:
         self.spp_per_iteration = spp
         self.iterations = 0
         self.alpha, self.surface_alpha = alpha, surface_alpha
-        # (alpha, dimension) of each blur: 1D beams; 2D surface photons unless path-traced
-        self.kernels = [(alpha, 1)] + ([(surface_alpha, 2)] if surface_radius > 0 else [])
+        # (alpha, dimension) of each blur, from the kernel's own schedules: 1D beams; 2D surface
+        # photons unless surfaces are path-traced
+        self.kernels = [tuple(k) for k in self.kernel.kernels]
 
     def run_iteration(self, iteration: int) -> None:
         # Passes 1-2: light paths, then their beams in a BVH with this iteration's radius.
