@@ -22,7 +22,7 @@ import pytest
 import stats
 from renderer import _core
 
-ISOTROPIC = 0
+ISOTROPIC = _core.PhaseType.isotropic
 INF = float("inf")
 
 # --------------------------------------------------------------------------- numpy references

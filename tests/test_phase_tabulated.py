@@ -27,7 +27,7 @@ from renderer.volumes import (
     tabulated_mean_cosine,
 )
 
-RAYLEIGH = 2
+RAYLEIGH = _core.PhaseType.rayleigh
 WO = (0.3, -0.5, 0.81)
 TABLES = {
     "ramp": np.linspace(0.0, 1.0, 5),  # zero at the back: f0 = 0 case of the inversion

@@ -18,8 +18,10 @@ import pytest
 import stats
 from renderer import _core
 
-DIFFUSE, MIRROR, DIELECTRIC, NULL = 0, 1, 2, 3
-ISOTROPIC, HG = 0, 1
+DIFFUSE, MIRROR, DIELECTRIC, NULL = (
+    _core.MaterialType[k] for k in ("diffuse", "mirror", "dielectric", "null")
+)
+ISOTROPIC, HG = _core.PhaseType.isotropic, _core.PhaseType.hg
 REFLECTANCE = (0.8, 0.5, 0.2)
 
 

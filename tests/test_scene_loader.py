@@ -1019,3 +1019,19 @@ def test_an_override_replaced_by_a_later_one_is_not_blamed(tmp_path):
                        overrides=["camera.origin=[5, 5, 5]", "camera={origin: [0, 0, 0], "
                                   "target: [0, 0, 0], up: [0, 1, 0], fov: 40}"])  # fmt: skip
     assert "camera.origin=[5, 5, 5]" not in msg, msg
+
+
+def test_the_kinds_a_scene_names_are_the_cores():
+    """The loader checks names without the native core (Mitsuba's export needs none); the
+    core binds its kinds under the same names, and its bindings refuse a value that is none
+    of them (a phase function number 7, or a name given as a string)."""
+    from renderer import _core
+    from renderer.scene import loader
+
+    assert list(_core.MaterialType.__members__) == list(loader.MATERIALS)
+    assert list(_core.Estimator.__members__) == list(loader.ESTIMATORS)
+    # "mie" is a tabulated phase function whose table the loader computes.
+    assert list(_core.PhaseType.__members__) == [k for k in loader.PHASES if k != "mie"]
+    for not_a_kind in (7, "hg"):
+        with pytest.raises(TypeError):
+            _core.eval_phase(not_a_kind, 0.0, (0.0, 0.0, 1.0), np.array([[0.0, 0.0, 1.0]]))

@@ -32,7 +32,6 @@ from renderer.volumes import (
 )
 from test_media import GridRef, affine, smooth_density
 
-ESTIMATORS = {"delta": 0, "ratio": 1, "residual": 2, "raymarch": 3}
 UNBIASED = ["delta", "ratio", "residual"]
 RAYS = {
     "diagonal": ((-0.3, -0.2, -0.1), (1.0, 0.8, 0.9)),
@@ -155,11 +154,11 @@ def world(grid, name):
 
 
 def estimate(grid, estimator, o, d, n=20_000, step=0.0, seed=10):
-    _core.configure_medium(grid.scene, grid.id, ESTIMATORS[estimator], step)
+    _core.configure_medium(grid.scene, grid.id, _core.Estimator[estimator], step)
     t, lookups = _core.transmittance_samples(
         grid.scene, grid.id, tuple(o), tuple(d), np.inf, seed, n
     )
-    _core.configure_medium(grid.scene, grid.id, ESTIMATORS["ratio"], 0.0)
+    _core.configure_medium(grid.scene, grid.id, _core.Estimator.ratio, 0.0)
     return t, lookups
 
 
@@ -195,7 +194,7 @@ def test_residual_needs_fewer_lookups_and_less_variance_than_ratio():
 def test_residual_is_exact_and_free_in_constant_cells():
     # T = 0.2466, below the roulette threshold (0.25): no roulette where nothing is looked up
     g = GridRef(np.full((8, 8, 8), 0.7, np.float32), affine(), 2.0)
-    _core.configure_medium(g.scene, g.id, ESTIMATORS["residual"], 0.0)
+    _core.configure_medium(g.scene, g.id, _core.Estimator.residual, 0.0)
     t, lookups = _core.transmittance_samples(
         g.scene, g.id, (0.5, 0.5, -1), (0, 0, 1), np.inf, 1, 100
     )

@@ -12,9 +12,6 @@ from .errors import PgiError
 from .scene.model import Camera, DirectionalLight, Film, Medium, PointLight, Scene, SpotLight
 from .scene.triangles import kept_faces
 
-_MATERIAL_TYPES = {"diffuse": 0, "mirror": 1, "dielectric": 2, "null": 3}
-_PHASE_TYPES = {"isotropic": 0, "hg": 1, "rayleigh": 2, "tabulated": 3}
-_ESTIMATORS = {"delta": 0, "ratio": 1, "residual": 2, "raymarch": 3}
 # Voxels per majorant cell: small enough to follow a plume's shape, large
 # enough that the DDA does not dominate. (bench/bench_media.py sweeps it: the
 # tighter the majorants, the closer delta tracking gets to ratio tracking.)
@@ -91,7 +88,7 @@ def march_step(
 
 def _add_medium(core: _core.Scene, m: Medium, scene: Scene, majorant_cell: int) -> int:
     """Describe one medium to the core; returns its id."""
-    phase, g = _PHASE_TYPES[m.phase.type], float(m.phase.g)
+    phase, g = _core.PhaseType[m.phase.type], float(m.phase.g)
     if m.type == "homogeneous":
         sigma_t = tuple(float(s) * m.scale for s in m.sigma_t)
         medium_id = core.add_homogeneous_medium(sigma_t, tuple(m.albedo), phase, g)
@@ -109,7 +106,7 @@ def _add_medium(core: _core.Scene, m: Medium, scene: Scene, majorant_cell: int) 
         )
         estimator = scene.integrator.estimator
         step = march_step(m, scene.integrator.march_step, scene.where("integrator", "march_step"))
-        _core.configure_medium(core, medium_id, _ESTIMATORS[estimator], step)
+        _core.configure_medium(core, medium_id, _core.Estimator[estimator], step)
     if m.phase.type == "tabulated":
         _core.set_phase_table(core, medium_id, np.ascontiguousarray(m.phase.values, np.float64))
     return medium_id
@@ -122,7 +119,7 @@ def build_native_scene(scene: Scene, majorant_cell: int = MAJORANT_CELL) -> Nati
     material_ids = {}
     for name, m in scene.materials.items():
         material_ids[name] = core.add_material(
-            _MATERIAL_TYPES[m.type], tuple(map(float, m.reflectance)), float(m.ior)
+            _core.MaterialType[m.type], tuple(map(float, m.reflectance)), float(m.ior)
         )
     medium_ids = {
         name: _add_medium(core, m, scene, majorant_cell) for name, m in scene.media.items()

@@ -22,10 +22,9 @@ Medium &medium_at(Scene &s, int medium) {
 
 void bind_media(nb::module_ &m) {
     m.def("configure_medium",
-          [](Scene &s, int medium, int estimator, double march_step) {
-              if (estimator < 0 || estimator > int(Estimator::RayMarch)) throw std::invalid_argument("unknown estimator");
+          [](Scene &s, int medium, Estimator estimator, double march_step) {
               Medium &md = medium_at(s, medium);
-              md.estimator = Estimator(estimator);
+              md.estimator = estimator;
               md.march_step = march_step;
           }, "scene"_a, "medium"_a, "estimator"_a, "march_step"_a);
     m.def("set_phase_table",

@@ -10,6 +10,26 @@ using namespace nb::literals;
 using namespace pgi;
 using namespace pgi::bind;
 
+// The kinds a scene file names, bound under the names it uses: Python looks them up by
+// name, and a binding that takes one refuses any value that is none of them.
+static void add_kinds(nb::module_ &m) {
+    nb::enum_<MaterialType>(m, "MaterialType")
+        .value("diffuse", MaterialType::Diffuse)
+        .value("mirror", MaterialType::Mirror)
+        .value("dielectric", MaterialType::Dielectric)
+        .value("null", MaterialType::Null);
+    nb::enum_<PhaseType>(m, "PhaseType")
+        .value("isotropic", PhaseType::Isotropic)
+        .value("hg", PhaseType::HenyeyGreenstein)
+        .value("rayleigh", PhaseType::Rayleigh)
+        .value("tabulated", PhaseType::Tabulated);
+    nb::enum_<Estimator>(m, "Estimator")
+        .value("delta", Estimator::Delta)
+        .value("ratio", Estimator::Ratio)
+        .value("residual", Estimator::Residual)
+        .value("raymarch", Estimator::RayMarch);
+}
+
 static void add_scene(nb::module_ &m) {
     nb::class_<Scene>(m, "Scene")
         .def(nb::new_([]() { return std::make_shared<Scene>(); }))
@@ -43,23 +63,23 @@ static void add_scene(nb::module_ &m) {
                  }
              })
         .def("add_material",
-             [](Scene &s, int type, V3 reflectance, double ior) {
-                 s.materials.push_back(Material{MaterialType(type), vec(reflectance), ior});
+             [](Scene &s, MaterialType type, V3 reflectance, double ior) {
+                 s.materials.push_back(Material{type, vec(reflectance), ior});
                  return int(s.materials.size() - 1);
              }, "type"_a, "reflectance"_a, "ior"_a)
         .def("add_homogeneous_medium",
-             [](Scene &s, V3 sigma_t, V3 albedo, int phase, double g) {
+             [](Scene &s, V3 sigma_t, V3 albedo, PhaseType phase, double g) {
                  Medium m;
                  m.type = MediumType::Homogeneous;
                  m.sigma_t = vec(sigma_t);
                  m.albedo = vec(albedo);
-                 m.phase = Phase{PhaseType(phase), g};
+                 m.phase = Phase{phase, g};
                  s.media.push_back(std::move(m));
                  return int(s.media.size() - 1);
              }, "sigma_t"_a, "albedo"_a, "phase"_a, "g"_a)
         .def("add_grid_medium",
              [](Scene &s, Array<float> density_zyx, Array<double> world_to_local, double sigma, V3 albedo,
-                int phase, double g, int majorant_cell) {
+                PhaseType phase, double g, int majorant_cell) {
                  if (density_zyx.ndim() != 3) throw std::invalid_argument("density must be 3D (z, y, x)");
                  if (world_to_local.ndim() != 2 || world_to_local.shape(0) < 3 || world_to_local.shape(1) != 4)
                      throw std::invalid_argument("world_to_local must be (3|4, 4)");
@@ -67,7 +87,7 @@ static void add_scene(nb::module_ &m) {
                  m.type = MediumType::Grid;
                  m.grid_sigma = sigma;
                  m.albedo = vec(albedo);
-                 m.phase = Phase{PhaseType(phase), g};
+                 m.phase = Phase{phase, g};
                  DensityGrid &G = m.grid;
                  G.nz = int(density_zyx.shape(0));
                  G.ny = int(density_zyx.shape(1));
@@ -226,8 +246,8 @@ static void add_sampling_probes(nb::module_ &m) {
           }, "samples"_a);
     // Each takes uniform numbers and returns what the renderer would sample.
     m.def("sample_bsdf",
-          [](int type, V3 reflectance, double ior, V3 normal, V3 wo, Array<double> u) {
-              Material mat{MaterialType(type), vec(reflectance), ior};
+          [](MaterialType type, V3 reflectance, double ior, V3 normal, V3 wo, Array<double> u) {
+              Material mat{type, vec(reflectance), ior};
               size_t n = u.shape(0);
               std::vector<double> wi(3 * n), weight(3 * n), pdf(n);
               std::vector<uint8_t> valid(n), delta(n);
@@ -248,8 +268,8 @@ static void add_sampling_probes(nb::module_ &m) {
                                      to_numpy(std::move(delta), {n}));
           }, "type"_a, "reflectance"_a, "ior"_a, "normal"_a, "wo"_a, "u"_a);
     m.def("eval_bsdf",
-          [](int type, V3 reflectance, double ior, V3 normal, V3 wo, Array<double> wi) {
-              Material mat{MaterialType(type), vec(reflectance), ior};
+          [](MaterialType type, V3 reflectance, double ior, V3 normal, V3 wo, Array<double> wi) {
+              Material mat{type, vec(reflectance), ior};
               size_t n = wi.shape(0);
               std::vector<double> f(3 * n), pdf(n);
               Vec3 nn = normalize(vec(normal)), w = normalize(vec(wo));
@@ -363,13 +383,13 @@ static void add_sampling_probes(nb::module_ &m) {
               return std::make_tuple(to_numpy(std::move(point), {n, 3}), to_numpy(std::move(pdf), {n}));
           }, "u"_a);
     m.def("sample_phase",
-          [](int type, double g, V3 wo, Array<double> u) {
-              Phase ph{PhaseType(type), g};
+          [](PhaseType type, double g, V3 wo, Array<double> u) {
+              Phase ph{type, g};
               return probe_phase_sample(ph, wo, u);
           }, "type"_a, "g"_a, "wo"_a, "u"_a);
     m.def("eval_phase",
-          [](int type, double g, V3 wo, Array<double> wi) {
-              Phase ph{PhaseType(type), g};
+          [](PhaseType type, double g, V3 wo, Array<double> wi) {
+              Phase ph{type, g};
               return probe_phase_eval(ph, wo, wi);
           }, "type"_a, "g"_a, "wo"_a, "wi"_a);
 }
@@ -380,6 +400,7 @@ NB_MODULE(_core, m) {
     // renderer.interrupts: a signal seen while a pass runs cuts its media tracking short.
     m.def("request_interrupt", []() { interrupt_flag().store(true); });
     m.def("clear_interrupt", []() { interrupt_flag().store(false); });
+    add_kinds(m);
     add_scene(m);
     add_sampling_probes(m);
     bind_pt(m);

@@ -87,6 +87,7 @@ INCLUDABLE = {"camera", "film", "integrator", "materials", "media", "shapes", "l
 FOV_AXES = ("x", "y", "diagonal", "smaller", "larger")
 MESH_SUFFIXES = (".ply", ".obj")
 ESTIMATORS = ("delta", "ratio", "residual", "raymarch")
+MATERIALS = ("diffuse", "mirror", "dielectric", "null")
 
 KeyPath = tuple[str | int, ...]
 
@@ -622,7 +623,7 @@ def _camera(val: _Validator, d: Any) -> Camera:
 
 def _material(val: _Validator, name: str, d: Any) -> Material:
     p: KeyPath = ("materials", name)
-    kind = val.kind(d, p, ("diffuse", "mirror", "dielectric", "null"))
+    kind = val.kind(d, p, MATERIALS)
     extra = {"diffuse": ("reflectance",), "dielectric": ("ior",)}.get(kind, ())
     val.mapping(d, p, required=("type",), optional=extra)
     if kind == "diffuse":
