@@ -155,6 +155,12 @@ def off_budget(render_seconds: float, budget: float) -> bool:
     return bool(abs(render_seconds - budget) > OFF_BUDGET * budget)
 
 
+def over_budget(render_seconds: float, budget: float) -> bool:
+    """True if a cell took more than OFF_BUDGET longer than its budget: it had more time than
+    the cells it would be ranked against."""
+    return bool(render_seconds > (1 + OFF_BUDGET) * budget)
+
+
 # Two cells are a tie when Welch's t-test at this two-sided level cannot tell their errors
 # apart. Errors are compared as logarithms (their ratio is what matters, and methods whose
 # errors differ 40x must not tie because one of them varies between seeds); the spreads come
@@ -181,9 +187,18 @@ def tied(a_mean: float, a_std: float, a_n: int, b_mean: float, b_std: float, b_n
 
 def best_methods(summary: pd.DataFrame, metric: str) -> pd.DataFrame:
     """The method with the lowest mean ``metric`` per scene and budget, and in ``tied_with``
-    the other methods (comma-separated) that seeds cannot tell from it."""
+    the other methods (comma-separated) that seeds cannot tell from it. A cell that overran
+    its budget (over_budget) neither wins nor ties: it is not an equal-time result. One that
+    stopped short of it may, having had less time; a budget whose cells all overran has no
+    winner."""
     col, std = f"{metric}_mean", f"{metric}_std"
     valid = summary.dropna(subset=[col])
+    if "render_seconds_mean" in valid:
+        in_time = [
+            not over_budget(t, b)
+            for t, b in zip(valid.render_seconds_mean, valid.budget, strict=True)
+        ]
+        valid = valid[in_time]
     idx = valid.groupby(["scene", "budget"])[col].idxmin()
     cols = ["scene", "budget", "method", col, "render_seconds_mean"]
     best = valid.loc[idx, [c for c in cols if c in valid]].reset_index(drop=True)
@@ -439,7 +454,7 @@ def overview_markdown(summary: pd.DataFrame, metric: str) -> str:
         "cannot tell from it with these seeds (a tie); ⚠ = reference error not well below "
         "this error; "
         f"(at … s) = the snapshot's mean render time, more than {OFF_BUDGET:.0%} off its "
-        "budget",
+        "budget (over it, the cell is never bold)",
         "",
         "| " + " | ".join(head) + " |",
         "|" + "|".join(["---"] * len(head)) + "|",

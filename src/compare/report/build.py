@@ -128,7 +128,8 @@ def _legend(metric: str, factor: float) -> str:
         f'<span class="offbudget">at … s</span>: the snapshot\'s mean render time, more than '
         f"{T.OFF_BUDGET:.0%} off its budget (a snapshot is the image at the iteration end "
         "nearest its budget; a method whose iterations are long cannot come closer), so the "
-        "cell is not an equal-time comparison.</p>"
+        "cell is not an equal-time comparison. A cell that ran over its budget so is never "
+        "bold and wins nothing: it had more time than the others.</p>"
     )
 
 
@@ -509,7 +510,9 @@ def build_index(spec: dict[str, Any]) -> None:
         for b in budgets:
             r = best[(best.scene == s) & (best.budget == b)]
             if r.empty:
-                win.append("<td></td>")
+                ran = ((summary.scene == s) & (summary.budget == b)).any()
+                # every cell overran the budget: none is an equal-time result
+                win.append('<td class="note">none within budget</td>' if ran else "<td></td>")
                 continue
             m = r.method.iloc[0]
             flag = "" if ok.get((s, m, b), True) else ' <span class="flag">⚠</span>'
