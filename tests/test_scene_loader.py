@@ -1021,6 +1021,19 @@ def test_an_override_replaced_by_a_later_one_is_not_blamed(tmp_path):
     assert "camera.origin=[5, 5, 5]" not in msg, msg
 
 
+def test_an_override_into_a_value_blames_what_made_it_a_value(tmp_path):
+    """`film=3` then `film.width=8`: film is no section any more, and the message says so and
+    names the override that made it 3 (it once said film.width did not exist)."""
+    path = write(tmp_path, BASE)
+    with pytest.raises(PgiError) as e:
+        load_scene(path, ["film=3", "film.width=8"])
+    msg = str(e.value)
+    assert "film is 3, not a mapping or list, so film.width cannot be set" in msg, msg
+    assert "(override 'film=3')" in msg, msg
+    with pytest.raises(PgiError, match=r"film.width is \d+, not a mapping or list"):
+        load_scene(path, ["film.width.x=8"])
+
+
 def test_the_kinds_a_scene_names_are_the_cores():
     """The loader checks names without the native core (Mitsuba's export needs none); the
     core binds its kinds under the same names, and its bindings refuse a value that is none

@@ -426,6 +426,14 @@ def _apply_override(doc: dict, text: str, origins: _Origins) -> None:
                 node = node[tok]
         else:
             missing = format_path(tokens[: n + 1])
+            if n > 0 and not isinstance(node, dict | list):
+                # a value, not a section: say who made it one (often an earlier override)
+                parent = tuple(tokens[:n])
+                raise PgiError(
+                    f"override {_describe(text)}: {format_path(parent)} is "
+                    f"{_describe(node)}, not a mapping or list, so {missing} cannot be set "
+                    f"({origins.where(parent)})"
+                )
             raise PgiError(f"override {_describe(text)}: {missing} does not exist in the scene")
     origins.replaced(tuple(tokens))
     for path in [*created, tuple(tokens)]:
