@@ -125,9 +125,11 @@ private:
 };
 
 // Power heuristic with beta = 2 (Veach 1997, eq. 9.13) for two strategies.
+// A NaN pdf gives a NaN weight, so the sample is counted as non-finite instead of vanishing.
 inline double power_heuristic(double pdf_a, double pdf_b) {
     double a = pdf_a * pdf_a, b = pdf_b * pdf_b;
-    return a + b > 0 ? a / (a + b) : 0.0;
+    if (a + b > 0) return a / (a + b);
+    return a + b == 0 ? 0.0 : std::numeric_limits<double>::quiet_NaN();
 }
 
 }  // namespace pgi

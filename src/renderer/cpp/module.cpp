@@ -220,6 +220,7 @@ static void add_scene(nb::module_ &m) {
 }
 
 static void add_sampling_probes(nb::module_ &m) {
+    m.def("power_heuristic", &power_heuristic, "pdf_a"_a, "pdf_b"_a);
     // The camera ray direction through each film point (fx, fy) in pixels, (0, 0) top-left.
     m.def("camera_directions",
           [](const Scene &s, Array<double> film_points) {

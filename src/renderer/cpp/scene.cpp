@@ -60,16 +60,12 @@ LightSample Scene::sample_light(const Vec3 &p, double u_pick, double u1, double 
             const Triangle &t = triangles[tri];
             double b1, b2;
             square_to_triangle(u2, u3, b1, b2);
-            Vec3 q = t.point(b1, b2);
-            s.point = q;
-            Vec3 to = q - p;
-            double d2 = dot(to, to);
-            if (d2 <= 0) return s;
-            s.dist = std::sqrt(d2);
+            s.point = t.point(b1, b2);
+            s.pdf = area_light_pdf(tri, p, s.point);  // the pdf MIS weighs it with
+            if (!(s.pdf > 0)) return s;
+            Vec3 to = s.point - p;
+            s.dist = std::sqrt(dot(to, to));
             s.wi = to / s.dist;
-            double cos_l = -dot(s.wi, t.n);
-            if (cos_l <= 0) return s;  // back of a one-sided emitter
-            s.pdf = pick / e.area * d2 / cos_l;
             s.value = e.radiance / s.pdf;
             s.valid = true;
             return s;
@@ -105,8 +101,9 @@ double Scene::area_light_pdf(int tri, const Vec3 &from, const Vec3 &hit) const {
     int li = light_of_emitter_[t.emitter];
     Vec3 to = hit - from;
     double d2 = dot(to, to);
-    double cos_l = std::abs(dot(to, t.n)) / std::sqrt(d2);
-    if (cos_l <= 0) return 0;
+    if (!(d2 > 0)) return 0;  // no direction from the light's own point
+    double cos_l = -dot(to, t.n) / std::sqrt(d2);
+    if (cos_l <= 0) return 0;  // the back of a one-sided emitter
     return light_selection.pmf(li) / area_emitters[t.emitter].area * d2 / cos_l;
 }
 
