@@ -16,7 +16,6 @@ class Method(Protocol):
     """A progressive method: each iteration is an independent estimate, the image their mean."""
 
     id: str
-    description: str
     parameters: frozenset[str]  # the KEYs `--set method.KEY=VALUE` may set
     method_params: dict  # after __init__: each parameter that applies, with the value used
 
@@ -35,9 +34,21 @@ class Method(Protocol):
 _METHODS: dict[str, tuple[str, str, str]] = {
     "pt": ("pt", "PathTracing", "volumetric path tracing, next-event estimation and MIS"),
     "lt": ("lt", "LightTracing", "light tracing: light paths connected to the camera"),
-    "pm": ("pm", "PhotonMapping", "photon mapping, volume photons, beam radiance estimate"),
-    "sppm": ("sppm", "StochasticProgressivePhotonMapping", "progressive photon mapping + media"),
-    "ppb": ("ppb", "ProgressivePhotonBeams", "progressive photon beams (BB1D) in media"),
+    "pm": (
+        "pm",
+        "PhotonMapping",
+        "photon mapping with volume photons and the beam radiance estimate (fixed radius)",
+    ),
+    "sppm": (
+        "sppm",
+        "StochasticProgressivePhotonMapping",
+        "stochastic progressive photon mapping, surfaces and media (Knaus-Zwicker radii)",
+    ),
+    "ppb": (
+        "ppb",
+        "ProgressivePhotonBeams",
+        "progressive photon beams (beam x beam 1D) in media, photons on surfaces",
+    ),
     "mitsuba": ("mitsuba", "MitsubaVolpath", "Mitsuba 3 volpath at the same budget"),
 }
 

@@ -38,7 +38,6 @@ def light_paths_for(pixels: int, spp_budget: int | None) -> int:
 
 class LightTracing:
     id = "lt"
-    description = "light tracing: light paths connected to the camera"
     parameters = frozenset({"light_paths", "max_records"})
 
     def __init__(

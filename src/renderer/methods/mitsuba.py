@@ -30,7 +30,6 @@ def default_spp(scene: Scene, spp_budget: int | None) -> int:
 
 class MitsubaVolpath:
     id = "mitsuba"
-    description = "Mitsuba 3 volpath at the same budget"
     parameters = frozenset({"spp_per_iteration"})
 
     def __init__(

@@ -33,7 +33,6 @@ DEFAULT_RADIUS_SCALE = 0.02
 
 class PhotonMapping:
     id = "pm"
-    description = "photon mapping with volume photons and the beam radiance estimate (fixed radius)"
     parameters = frozenset(
         {"photons", "spp_per_iteration", "radius", "volume_radius", "radius_scale", "max_records"}
     )

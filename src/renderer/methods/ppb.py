@@ -60,7 +60,6 @@ DEFAULT_GATHER_BOUNCES = 0
 
 class ProgressivePhotonBeams:
     id = "ppb"
-    description = "progressive photon beams (beam x beam 1D) in media, photons on surfaces"
     parameters = frozenset(
         {
             "light_paths",

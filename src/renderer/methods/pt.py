@@ -62,7 +62,6 @@ def trace_lane(
 
 class PathTracing:
     id = "pt"
-    description = "volumetric path tracing, next-event estimation and MIS"
     parameters = frozenset({"spp_per_wave", "slots_per_lane"})
 
     def __init__(

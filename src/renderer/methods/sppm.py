@@ -30,7 +30,6 @@ DEFAULT_INITIAL_RADIUS_SCALE = 0.04
 
 class StochasticProgressivePhotonMapping(PhotonMapping):
     id = "sppm"
-    description = "stochastic progressive photon mapping, surfaces and media (Knaus-Zwicker radii)"
     parameters = PhotonMapping.parameters | {"alpha", "volume_alpha"}
 
     def __init__(
