@@ -118,10 +118,11 @@ EmissionSample sample_emission(const Scene &scene, const double u[6]) {
         case LightType::Directional: {
             // A disk covering the scene's bounding sphere, just outside it, perpendicular to
             // the direction of travel: power = E * area / pick, the unit disk's pdf scaled by R^2.
-            double radius = scene.scene_radius * 1.01;
+            const Scene::Disk sun = scene.directional_disk(l.direction);
+            const double radius = sun.radius;
             Vec3 disk = square_to_uniform_disk_concentric(u[4], u[5]);
             Frame f(l.direction);
-            s.pos = scene.scene_center - l.direction * radius + (f.s * disk.x + f.t * disk.y) * radius;
+            s.pos = sun.centre + (f.s * disk.x + f.t * disk.y) * radius;
             s.dir = l.direction;
             s.power = l.intensity * (radius * radius / (square_to_uniform_disk_concentric_pdf() * pick));
             break;

@@ -149,6 +149,11 @@ static void add_scene(nb::module_ &m) {
         .def_prop_ro("triangle_count", [](const Scene &s) { return s.triangles.size(); })
         .def_prop_ro("ray_epsilon", [](const Scene &s) { return s.ray_epsilon; })
         .def_prop_ro("scene_radius", [](const Scene &s) { return s.scene_radius; })
+        .def("directional_disk",
+             [](const Scene &s, V3 direction) {
+                 const Scene::Disk d = s.directional_disk(normalize(vec(direction)));
+                 return std::make_tuple(std::array<double, 3>{d.centre.x, d.centre.y, d.centre.z}, d.radius);
+             }, "direction"_a)
         .def_prop_ro("scene_center",
                      [](const Scene &s) { return std::array<double, 3>{s.scene_center.x, s.scene_center.y, s.scene_center.z}; })
         // Probes for tests: estimators evaluated in isolation.

@@ -103,6 +103,18 @@ public:
     double ray_epsilon = 1e-5;  // surface offset, relative to the scene's size
     double scene_radius = 1;
     Vec3 scene_center;
+
+    // The disk a directional light's paths start on, perpendicular to its (unit) direction of
+    // travel: radius 1.01 scene radii, centred as far before the scene's centre, so that it
+    // covers the bounding sphere from just outside it.
+    struct Disk {
+        Vec3 centre;
+        double radius;
+    };
+    Disk directional_disk(const Vec3 &direction) const {
+        const double radius = scene_radius * 1.01;
+        return {scene_center - direction * radius, radius};
+    }
     // Some triangle is a null (index-matched) boundary that paths and shadow rays cross.
     // Starts true so that a scene not yet finalized never lets shadow rays skip a boundary.
     bool has_null_surfaces = true;

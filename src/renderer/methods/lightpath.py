@@ -257,15 +257,13 @@ _CROSSES_NAMED, _REACHES_CAMERA, _ENDS_OPAQUE, _ONLY_OPAQUE_TO_CAMERA = 0, 1, 2,
 
 
 def _sun_disk_points(native: NativeScene, direction) -> np.ndarray:
-    """Points spread evenly over the disk a directional light's paths start on
-    (cpp/lightpath.cpp): radius 1.01 scene radii, centred that far from the core's scene
-    centre against the direction of travel, perpendicular to it. A fixed sunflower
-    lattice, the same for every seed; the first point is the centre."""
-    core = native.core
+    """Points spread evenly over the disk a directional light's paths start on (the core's
+    Scene::directional_disk). A fixed sunflower lattice, the same for every seed; the first
+    point is the centre."""
     d = np.asarray(direction, np.float64)
     d = d / np.linalg.norm(d)
-    radius = 1.01 * core.scene_radius
-    centre = np.asarray(core.scene_center) - d * radius
+    centre, radius = native.core.directional_disk(tuple(d))
+    centre = np.asarray(centre)
     helper = np.array([1.0, 0, 0]) if abs(d[0]) < 0.9 else np.array([0, 1.0, 0])
     s = np.cross(d, helper)
     s /= np.linalg.norm(s)
