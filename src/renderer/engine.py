@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -25,6 +26,21 @@ class NativeScene:
     core: _core.Scene
     triangles: np.ndarray  # (T, 3, 3) float64, the triangles both Embree and the core use
     kept: np.ndarray  # per face of every shape, in shape order: whether it is in `triangles`
+    # As the core was given them: the index of each named medium; per triangle the medium
+    # inside and outside (-1: none named) and whether its shape names a medium at all; and
+    # the core's light index of each of the scene's lights (area lights come first).
+    medium_ids: dict[str, int]
+    interior: np.ndarray
+    exterior: np.ndarray
+    transition: np.ndarray
+    light_ids: list[int]
+
+    @cached_property
+    def normals(self) -> np.ndarray:
+        """(T, 3) unit normals of the triangles, oriented as the core's."""
+        t = self.triangles
+        n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+        return n / np.linalg.norm(n, axis=1, keepdims=True)
 
     @property
     def dropped_triangles(self) -> int:
@@ -150,10 +166,12 @@ def build_native_scene(scene: Scene, majorant_cell: int = MAJORANT_CELL) -> Nati
     )
 
     emitter = np.full(len(triangles), -1, np.int32)
+    area_lights = 0
     for index, shape in enumerate(scene.shapes):
         if shape.emission is not None:  # kept_faces refused emitters with no triangle left
             members = np.flatnonzero(owner == index).astype(np.int32)
             emitter[members] = core.add_area_light(tuple(map(float, shape.emission)), members)
+            area_lights += 1
     core.set_triangles(triangles, mats, emitter, inside, outside, transition)
 
     for light in scene.lights:
@@ -181,4 +199,7 @@ def build_native_scene(scene: Scene, majorant_cell: int = MAJORANT_CELL) -> Nati
         medium(scene.camera.medium),
     )
     core.finalize()
-    return NativeScene(core, triangles, keep)
+    light_ids = [area_lights + i for i in range(len(scene.lights))]  # in the order added above
+    return NativeScene(
+        core, triangles, keep, medium_ids, inside, outside, transition.astype(bool), light_ids
+    )

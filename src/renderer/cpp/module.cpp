@@ -149,6 +149,7 @@ static void add_scene(nb::module_ &m) {
         .def_prop_ro("triangle_count", [](const Scene &s) { return s.triangles.size(); })
         .def_prop_ro("ray_epsilon", [](const Scene &s) { return s.ray_epsilon; })
         .def_prop_ro("scene_radius", [](const Scene &s) { return s.scene_radius; })
+        .def_prop_ro("light_count", [](const Scene &s) { return s.lights.size(); })
         .def("directional_disk",
              [](const Scene &s, V3 direction) {
                  const Scene::Disk d = s.directional_disk(normalize(vec(direction)));

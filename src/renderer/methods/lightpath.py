@@ -22,11 +22,6 @@ from ..tracer import EmbreeTracer, RayBatch
 _PROBE_DIRECTIONS = 5
 
 
-def _medium_names(scene: Scene) -> dict[str, int]:
-    """Medium indices as the native scene numbers them (insertion order)."""
-    return {name: i for i, name in enumerate(scene.media)}
-
-
 class _ProbeSurfaces:
     """The scene as straight probe rays see it: the shapes that name a medium, and the opaque
     surfaces (neither null nor dielectric) that name none, each in an Embree scene of its own.
@@ -35,12 +30,12 @@ class _ProbeSurfaces:
     box built on the walls), which a walk through the whole scene could step over."""
 
     def __init__(self, native: NativeScene, scene: Scene) -> None:
-        self.inside, self.outside, named = _triangle_media(native, scene, _medium_names(scene))
+        self.inside, self.outside, named = native.interior, native.exterior, native.transition
         passable = native.per_triangle(
             scene,
             [scene.materials[s.material].type in ("null", "dielectric") for s in scene.shapes],
         ).astype(bool)
-        self.normals = _unit_normals(native)
+        self.normals = native.normals
         self.named_ids = np.flatnonzero(named)
         self.opaque_ids = np.flatnonzero(~named & ~passable)
         self.named = self._tracer(native, self.named_ids)
@@ -95,32 +90,9 @@ def locate_media(
     return side
 
 
-def _unit_normals(native: NativeScene) -> np.ndarray:
-    tri = native.triangles
-    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    return normals / np.linalg.norm(normals, axis=1, keepdims=True)
-
-
-def _triangle_media(native: NativeScene, scene: Scene, ids: dict[str, int]):
-    """Interior, exterior and 'names a medium' per native triangle (same order as the core)."""
-    shapes = scene.shapes
-    inside = native.per_triangle(
-        scene, [-1 if s.interior is None else ids[s.interior] for s in shapes]
-    )
-    outside = native.per_triangle(
-        scene, [-1 if s.exterior is None else ids[s.exterior] for s in shapes]
-    )
-    named = native.per_triangle(
-        scene, [s.interior is not None or s.exterior is not None for s in shapes]
-    )
-    return inside.astype(np.int32), outside.astype(np.int32), named.astype(bool)
-
-
 def emission_media(native: NativeScene, scene: Scene, seed: int = 0):
-    """(per triangle, per light) medium each light emits into, in the core's light order.
-
-    Area lights come first in the core (one per emitting shape, in shape order), then
-    point, spot and directional lights in the scene's order. Emitting triangles are
+    """(per triangle, per light) medium each light emits into, in the core's light order
+    (NativeScene.light_ids: area lights first). Emitting triangles are
     probed from their centroid on the front side; point and spot lights from their
     position; directional lights start on a disk just outside the scene's bounding sphere
     (vacuum). When the camera sits in a medium, a light shares it if the straight route
@@ -141,21 +113,17 @@ def emission_media(native: NativeScene, scene: Scene, seed: int = 0):
     ntri = len(tri)
     per_triangle = np.full(ntri, -1, np.int32)
     emitting = _emitting_triangles(native, scene)
-    lights_area = sum(1 for s in scene.shapes if s.emission is not None)
     point_positions = []
     for light in scene.lights:
         if isinstance(light, (PointLight, SpotLight)):
             point_positions.append(np.asarray(light.position, np.float64))
         else:
             point_positions.append(None)
-    camera_medium = (
-        None if scene.camera.medium is None else _medium_names(scene)[scene.camera.medium]
-    )
+    camera_medium = None if scene.camera.medium is None else native.medium_ids[scene.camera.medium]
     if len(emitting):
         t = tri[emitting]
         centroid = t.mean(axis=1)
-        normal = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
-        normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+        normal = native.normals[emitting]
         extent = float(np.ptp(tri.reshape(-1, 3), axis=0).max())
         per_triangle[emitting] = _surface_media(
             surfaces, scene, centroid, normal, extent, camera_medium, rng
@@ -178,13 +146,13 @@ def emission_media(native: NativeScene, scene: Scene, seed: int = 0):
             if len(split):
                 first = split[0]
                 _refuse_split_emitter(native, scene, emitting[first], (ref[first], found[first]))
-    per_light = np.full(lights_area + len(scene.lights), -1, np.int32)
+    per_light = np.full(native.core.light_count, -1, np.int32)
     for i, pos in enumerate(point_positions):
         if pos is None:
             continue
         d = rng.normal(size=(_PROBE_DIRECTIONS, 3))
         found = locate_media(surfaces, np.repeat(pos[None], _PROBE_DIRECTIONS, 0), d)
-        per_light[lights_area + i] = _majority(found[:, None])[0]
+        per_light[native.light_ids[i]] = _majority(found[:, None])[0]
     if camera_medium is not None:
         # A medium no shape names (a room filled with the camera's fog) is invisible to the
         # probes. A light that the camera reaches without crossing a shape naming a medium is
@@ -194,11 +162,11 @@ def emission_media(native: NativeScene, scene: Scene, seed: int = 0):
                 outcome, side = _camera_routes(
                     surfaces, scene, _sun_disk_points(native, scene.lights[i].direction)
                 )
-                per_light[lights_area + i] = _disk_medium(outcome, side, camera_medium)
+                per_light[native.light_ids[i]] = _disk_medium(outcome, side, camera_medium)
             else:
                 outcome, _ = _camera_routes(surfaces, scene, pos[None])
                 if _route_shares_camera_medium(outcome)[0]:
-                    per_light[lights_area + i] = camera_medium
+                    per_light[native.light_ids[i]] = camera_medium
     return per_triangle, per_light
 
 
