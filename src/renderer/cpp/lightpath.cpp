@@ -7,9 +7,6 @@
 
 namespace pgi {
 
-// Stream tag so that light paths never share random numbers with camera paths.
-constexpr uint64_t kLightStreamTag = 0x4c69676874506174ull;
-
 LightPathTracer::LightPathTracer(std::shared_ptr<const Scene> scene, int max_depth, int rr_depth, uint64_t seed,
                                  int64_t paths_per_iteration, int threads, int64_t max_records)
     : scene_(std::move(scene)), depth_(max_depth), rr_depth_(rr_depth), seed_(seed),
@@ -57,7 +54,7 @@ size_t LightPathTracer::begin_iteration(int64_t iteration, const RayBuffers &out
     for (int64_t i = 0; i < int64_t(n); ++i) {
         LightPathState &p = paths_[i];
         p = LightPathState();
-        p.rng = Sampler(stream_key(seed_ ^ kLightStreamTag, uint64_t(iteration), uint64_t(i)));
+        p.rng = Sampler(stream_key(seed_ ^ stream_tag::kLightPaths, uint64_t(iteration), uint64_t(i)));
         p.spectral.hero = hero_channel(p.rng);
         emit(p, size_t(i));
     }

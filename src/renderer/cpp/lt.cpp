@@ -3,8 +3,6 @@
 
 namespace pgi {
 
-constexpr uint64_t kConnectionStreamTag = 0x436f6e6e65637473ull;
-
 LightTracer::LightTracer(std::shared_ptr<const Scene> scene, uint64_t seed, int threads)
     : scene_(std::move(scene)), seed_(seed), threads_(std::max(1, threads)),
       film_(scene_->camera.width, scene_->camera.height) {}
@@ -60,7 +58,7 @@ size_t LightTracer::connect(const LightPathTracer &paths) {
         r.medium = medium;
         r.receiver = k;
         r.contribution = value;
-        r.rng = Sampler(stream_key(seed_ ^ kConnectionStreamTag, iteration, uint64_t(k)));
+        r.rng = Sampler(stream_key(seed_ ^ stream_tag::kConnections, iteration, uint64_t(k)));
         r.live = true;
     }
     return shadow_.live(threads_);

@@ -297,7 +297,7 @@ struct SpectralMis {
 // A path's hero channel, drawn from a child of its stream: drawing it uses up no dimension of
 // the path's own (scenes without chromatic media keep their images).
 inline int hero_channel(const Sampler &path_rng) {
-    return std::min(2, int(path_rng.split(0x4865726f00000000ull).next() * 3));
+    return std::min(2, int(path_rng.split(stream_tag::kHero).next() * 3));
 }
 
 // Distance sampling. Homogeneous media use the closed form; with chromatic extinction the

@@ -5,7 +5,6 @@ namespace pgi {
 
 // Specular bounces followed when max_depth is unlimited.
 constexpr int kMaxSpecularBounces = 64;
-constexpr uint64_t kGatherStreamTag = 0x4761746865725061ull;
 
 namespace {
 
@@ -70,7 +69,7 @@ size_t PhotonGatherer::begin_camera(int64_t iteration, const RayBuffers &out) {
     active_.clear();
     if (!depth_.allows(0)) return 0;  // Mitsuba: max_depth 0 renders black
     if (out.capacity < paths_.size()) throw std::invalid_argument("pm: ray buffers too small");
-    return start_camera_wave(paths_, active_, cam, iteration, spp_per_iteration_, seed_ ^ kGatherStreamTag, out,
+    return start_camera_wave(paths_, active_, cam, iteration, spp_per_iteration_, seed_ ^ stream_tag::kGatherPaths, out,
                              threads_);
 }
 

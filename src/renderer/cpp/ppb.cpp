@@ -62,7 +62,7 @@ size_t PhotonBeams::begin_wave(int64_t iteration, const RayBuffers &out) {
     shadow_.clear();
     if (!depth_.allows(0)) return 0;  // Mitsuba: max_depth 0 renders black
     // A stream key distinct from the light paths' (which use (seed, iteration, path)).
-    return start_camera_wave(paths_, active_, cam, iteration, spp_per_iteration_, seed_ ^ 0x5bd1e995b5ull, out,
+    return start_camera_wave(paths_, active_, cam, iteration, spp_per_iteration_, seed_ ^ stream_tag::kBeamGatherPaths, out,
                              threads_);
 }
 

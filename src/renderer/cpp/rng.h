@@ -2,7 +2,9 @@
 // image is the same whatever the thread count or the order paths are processed in.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
+#include <iterator>
 
 namespace pgi {
 
@@ -17,6 +19,26 @@ inline uint64_t mix64(uint64_t z) {  // SplitMix64 finaliser
 inline uint64_t stream_key(uint64_t a, uint64_t b, uint64_t c) {
     return mix64(mix64(mix64(a) ^ b) ^ (c * 0xd1342543de82ef95ull));
 }
+
+// Tags that keep a render's streams apart: a family of paths keys its streams by seed ^ its
+// tag, and a child stream split off for one purpose takes that purpose's tag. Most spell
+// their name in ASCII; ppb's value predates the names (images stay as they were).
+namespace stream_tag {
+constexpr uint64_t kLightPaths = 0x4c69676874506174ull;    // "LightPat": lt, pm, sppm, ppb
+constexpr uint64_t kConnections = 0x436f6e6e65637473ull;   // "Connects": lt's camera connections
+constexpr uint64_t kGatherPaths = 0x4761746865725061ull;   // "GatherPa": pm's and sppm's camera paths
+constexpr uint64_t kBeamGatherPaths = 0x5bd1e995b5ull;     // ppb's camera paths
+constexpr uint64_t kHero = 0x4865726f00000000ull;          // "Hero": a path's hero channel
+constexpr uint64_t kFork = 0x466f726b00000000ull;          // "Fork" + n: Sampler::fork's children
+constexpr uint64_t kAll[] = {kLightPaths, kConnections, kGatherPaths, kBeamGatherPaths, kHero, kFork};
+constexpr bool all_distinct() {
+    for (size_t i = 0; i < std::size(kAll); ++i)
+        for (size_t j = i + 1; j < std::size(kAll); ++j)
+            if (kAll[i] == kAll[j]) return false;
+    return true;
+}
+static_assert(all_distinct(), "two stream families share a tag");
+}  // namespace stream_tag
 
 struct Sampler {
     uint64_t key = 0;
@@ -33,7 +55,7 @@ struct Sampler {
     // gives the same child: tag by something that differs between uses.
     Sampler split(uint64_t tag) const { return Sampler(mix64(key ^ mix64(tag + 0x8cb92ba72f3d8dd7ull))); }
     // A new child stream at each call: it uses up one dimension of this stream.
-    Sampler fork() { return split(0x466f726b00000000ull + uint64_t(++dim)); }
+    Sampler fork() { return split(stream_tag::kFork + uint64_t(++dim)); }
 };
 
 }  // namespace pgi
