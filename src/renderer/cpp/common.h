@@ -65,14 +65,12 @@ inline bool is_finite(const Vec3 &v) {
 }
 inline Vec3 reflect(const Vec3 &w, const Vec3 &n) { return n * (2.0 * dot(w, n)) - w; }
 
-// The part [t0, t1] of the ray o + t d, t in [0, tmax], inside the box [lo - grow, hi + grow]:
-// slab test, inv = 1 / d componentwise (a zero component tests the slab directly). False when
-// the ray misses the box (a ray that only touches it gets t0 == t1).
+// Whether the ray o + t d, t in [0, tmax], meets the box [lo - grow, hi + grow]: slab test,
+// inv = 1 / d componentwise (a zero component tests the slab directly).
 template <typename Scalar>
-bool ray_box_interval(const Vec3 &o, const Vec3 &d, const Vec3 &inv, const Scalar lo[3], const Scalar hi[3],
-                      double tmax, double grow, double &t0, double &t1) {
-    t0 = 0;
-    t1 = tmax;
+bool ray_meets_box(const Vec3 &o, const Vec3 &d, const Vec3 &inv, const Scalar lo[3], const Scalar hi[3],
+                   double tmax, double grow = 0) {
+    double t0 = 0, t1 = tmax;
     for (int a = 0; a < 3; ++a) {
         double l = double(lo[a]) - grow, h = double(hi[a]) + grow;
         if (d[a] == 0) {
@@ -86,12 +84,6 @@ bool ray_box_interval(const Vec3 &o, const Vec3 &d, const Vec3 &inv, const Scala
         if (t0 > t1) return false;
     }
     return true;
-}
-template <typename Scalar>
-bool ray_meets_box(const Vec3 &o, const Vec3 &d, const Vec3 &inv, const Scalar lo[3], const Scalar hi[3],
-                   double tmax, double grow = 0) {
-    double t0, t1;
-    return ray_box_interval(o, d, inv, lo, hi, tmax, grow, t0, t1);
 }
 
 // Orthonormal basis around a unit vector (Duff et al. 2017, branchless).

