@@ -4,6 +4,7 @@
 //   Jensen & Christensen 1998, "Efficient simulation of light transport in scenes
 //     with participating media using photon maps";
 //   Jarosz, Zwicker & Jensen 2008, "The beam radiance estimate for volumetric photon mapping";
+//   (sppm) Hachisuka, Ogaki & Jensen 2008, "Progressive photon mapping";
 //   (sppm) Hachisuka & Jensen 2009, "Stochastic progressive photon mapping";
 //   Knaus & Zwicker 2011, "Progressive photon mapping: a probabilistic approach".
 //

@@ -1,3 +1,4 @@
+// ppb: progressive photon beams (Jarosz et al. 2011; see ppb.h for the papers and the passes).
 #include "ppb.h"
 
 namespace pgi {
