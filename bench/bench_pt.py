@@ -15,7 +15,9 @@
     against a high-spp Mitsuba reference cached under bench/.cache/, each less the
     reference's own relMSE (estimated from its two independent halves). A relMSE less than
     10x the reference's own is marked reference-limited and gets no ratio.
-(c) Where pt's time goes: time per traced ray in Embree (`intersect`, `occluded`) and in each
+(c) Samples per second of pt and Mitsuba, and the ray rate Mitsuba would have at pt's rays
+    per sample (Mitsuba does not count its rays).
+(d) Where pt's time goes: time per traced ray in Embree (`intersect`, `occluded`) and in each
     native pass of the lanes (next_rays, shade, shadow_rays, resolve_shadows or
     resolve_occlusion), summed over the lanes and divided by their number.
 Numbers are printed, never asserted: timings on a shared machine are noisy.
@@ -208,9 +210,13 @@ def main() -> None:
         scene = scene_at(name, args.size)
         pt_rate, raw_rate, inside_rate, own = raw_embree_rate(scene, args.threads)
         ref, floor = mitsuba_reference(name, args.size, args.reference_spp)
-        errors, runs = {}, {}
+        errors, runs, sample_rates = {}, {}, {}
         for method_id in ("pt", "mitsuba"):
             image, stats = timed(method_id, scene, args.seconds, args.threads, seed=1)
+            samples = stats["spp"] * image.shape[0] * image.shape[1]
+            sample_rates[method_id] = samples / stats["seconds"]
+            if method_id == "pt":
+                rays_per_sample = stats["rays"] / samples
             # The reference's own error adds to each measured one (independent noise).
             errors[method_id] = relmse_less_reference(image, ref, floor)
             limited = "" if errors[method_id][1] else ", reference-limited"
@@ -228,6 +234,17 @@ def main() -> None:
         print(
             f"{name:<10} Embree per ray: {1e9 / inside_rate:.0f} ns inside pt, "
             f"{1e9 / raw_rate:.0f} ns alone; pt's own passes: {1e9 * own:.0f} ns per ray",
+            flush=True,
+        )
+        # Mitsuba does not count its rays; its paths follow the same rules (max depth,
+        # roulette, one shadow ray per vertex), so at pt's rays per sample its samples per
+        # second say roughly what ray rate the same measure would give it.
+        mitsuba_rays = sample_rates["mitsuba"] * rays_per_sample
+        print(
+            f"{name:<10} samples per second: pt {sample_rates['pt'] / 1e6:.3f} M, mitsuba "
+            f"{sample_rates['mitsuba'] / 1e6:.3f} M; at pt's {rays_per_sample:.2f} rays per "
+            f"sample, mitsuba's would be {mitsuba_rays / 1e6:.2f} Mrays/s "
+            f"({mitsuba_rays / raw_rate:.0%} of raw embreex)",
             flush=True,
         )
         seconds_by_pass, rays = pass_breakdown(scene, args.threads)
