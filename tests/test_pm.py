@@ -207,13 +207,15 @@ def test_stats_report_the_radii_and_the_bias():
     assert s["iterations"] == 1 and s["spp"] == 1 and s["nonfinite"] == 0
 
 
-def test_the_gathering_kernel_refuses_a_radius_of_zero():
-    """A kernel of radius 0 divides by 0 (every estimate 0 * inf): the native gather refuses
-    it, whatever schedule asked for it, instead of filling the image with NaN."""
+@pytest.mark.parametrize("radius", [0.0, 1e-200])
+def test_the_gathering_kernel_refuses_a_radius_of_zero(radius):
+    """A kernel of radius 0 divides by 0 (every estimate 0 * inf), and so does one whose
+    square underflows: the native gather refuses it, whatever schedule asked for it, instead
+    of filling the image with NaN."""
 
     class ZeroSurfaceRadius(PhotonMapping):
         def radii(self, iteration: int) -> tuple[float, float]:
-            return 0.0, self.volume_radius
+            return radius, self.volume_radius
 
     method = ZeroSurfaceRadius(
         load_small("cbox-fog", 8, 8), seed=0, threads=1, params={"photons": 256}

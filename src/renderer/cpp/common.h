@@ -120,8 +120,12 @@ private:
 // A NaN pdf gives a NaN weight, so the sample is counted as non-finite instead of vanishing.
 inline double power_heuristic(double pdf_a, double pdf_b) {
     double a = pdf_a * pdf_a, b = pdf_b * pdf_b;
-    if (a + b > 0) return a / (a + b);
-    return a + b == 0 ? 0.0 : std::numeric_limits<double>::quiet_NaN();
+    if (a + b > 0 && a + b < kInf) return a / (a + b);
+    if (a + b == 0) return 0.0;
+    // A square beyond double's range (a pdf above ~1e154, or infinite) would give inf / inf:
+    // the ratio of the pdfs gives the weight instead (NaN for a NaN pdf or two infinite ones).
+    double r = pdf_b / pdf_a;
+    return 1 / (1 + r * r);
 }
 
 }  // namespace pgi
