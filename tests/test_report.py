@@ -811,6 +811,52 @@ def test_the_winner_tied_with_an_expected_method_says_so(tmp_path: Path) -> None
     assert "; tied with" not in text  # the tie is said once
 
 
+def test_a_budget_every_method_overran_has_no_winner(report: Path, tmp_path: Path) -> None:
+    """When every cell of a budget overran it, the winners table says none won there, and
+    the scene page says so beside the winner at the largest budget that has one; a budget
+    with no value at all (every cell NaN) stays blank instead."""
+    from compare.report.build import _about_scene
+
+    scene_file = tmp_path / "scene.yaml"
+    scene_file.write_text("expected_winners: [pt]\n")
+    summary = pd.concat(
+        [_summary([("lt", 1.0, 0.1, 2), ("pt", 0.5, 0.1, 2)])] * 2, ignore_index=True
+    )
+    summary["budget"] = [1.0, 1.0, 2.0, 2.0]
+    summary["render_seconds_mean"] = [1.0, 1.0, 2.5, 2.5]
+    text = _about_scene(str(scene_file), "s", summary, "relmse", ["lt", "pt"], {})
+    won = re.search(r"<b>Won</b> at ([^:]+):", text)
+    assert won and won[1] == T.budget_label(1.0), text
+    assert f"At {T.budget_label(2.0)} every method overran its budget: none won." in text
+    summary["render_seconds_mean"] = [1.0, 1.0, 2.0, 2.0]
+    assert "overran" not in _about_scene(str(scene_file), "s", summary, "relmse", ["pt"], {})
+
+    tables = tmp_path / "tables"
+    tables.mkdir()
+    for csv in (report / "tables").glob("*.csv"):
+        (tables / csv.name).write_bytes(csv.read_bytes())
+    summary = pd.read_csv(tables / "summary.csv")
+    largest = summary.budget == summary.budget.max()
+    spec = {
+        "reports": str(tmp_path / "out"), "tables": str(tables), "metric": "relmse",
+        "baseline": "pt", "factor": 10, "title": "t", "study": "t", "methods": ["pt", "lt"],
+        "scenes": ["toy"], "refs": {"toy": str(report.parent / "ref.json")},
+    }  # fmt: skip
+
+    def winners() -> str:
+        build_index(spec)
+        index = (tmp_path / "out" / "index.html").read_text()
+        return index[index.index("Best method per scene") : index.index("Overview:")]
+
+    assert "none within budget" not in winners()
+    summary.loc[largest, "render_seconds_mean"] = 2 * summary.loc[largest, "budget"]
+    summary.to_csv(tables / "summary.csv", index=False)
+    assert winners().count("none within budget") == 1
+    summary.loc[largest, "relmse_mean"] = np.nan
+    summary.to_csv(tables / "summary.csv", index=False)
+    assert "none within budget" not in winners()
+
+
 def test_index_says_what_the_methods_are_and_flags_a_target_near_the_reference(
     report: Path, tmp_path: Path
 ) -> None:

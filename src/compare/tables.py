@@ -158,7 +158,7 @@ def off_budget(render_seconds: float, budget: float) -> bool:
 def over_budget(render_seconds: float, budget: float) -> bool:
     """True if a cell took more than OFF_BUDGET longer than its budget: it had more time than
     the cells it would be ranked against."""
-    return bool(render_seconds > (1 + OFF_BUDGET) * budget)
+    return off_budget(render_seconds, budget) and render_seconds > budget
 
 
 # Two cells are a tie when Welch's t-test at this two-sided level cannot tell their errors

@@ -236,6 +236,12 @@ def _about_scene(
             if others:
                 verdict += f"; tied with {e(', '.join(others))}"
             parts.append(f" <b>Won</b> at {e(T.budget_label(last.budget))}: {e(won)} ({verdict}).")
+            ranked = summary[(summary.scene == scene) & summary[f"{metric}_mean"].notna()]
+            largest = ranked.budget.max()
+            if last.budget < largest:
+                parts.append(
+                    f" At {e(T.budget_label(largest))} every method overran its budget: none won."
+                )
         parts.append("</p>")
     return "".join(parts)
 
@@ -510,8 +516,10 @@ def build_index(spec: dict[str, Any]) -> None:
         for b in budgets:
             r = best[(best.scene == s) & (best.budget == b)]
             if r.empty:
-                ran = ((summary.scene == s) & (summary.budget == b)).any()
-                # every cell overran the budget: none is an equal-time result
+                ran = (
+                    (summary.scene == s) & (summary.budget == b) & summary[f"{metric}_mean"].notna()
+                ).any()
+                # every cell with a value overran the budget: none is an equal-time result
                 win.append('<td class="note">none within budget</td>' if ran else "<td></td>")
                 continue
             m = r.method.iloc[0]
