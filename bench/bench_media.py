@@ -42,7 +42,7 @@ from renderer.methods.pt import PathTracing
 from renderer.progressive import run_for
 from renderer.scene import load_scene
 
-ESTIMATORS = {"delta": 0, "ratio": 1, "residual": 2, "raymarch": 3}
+ESTIMATORS = dict(_core.Estimator.__members__)  # delta, ratio, residual, raymarch
 Ray = tuple[np.ndarray, np.ndarray, float]  # origin, unit direction, length
 
 

@@ -15,6 +15,7 @@ import yaml
 
 from conftest import SCENES
 from renderer.errors import PgiError
+from renderer.progressive import available_cores
 
 PGI = [sys.executable, "-m", "renderer.cli"]
 
@@ -98,7 +99,7 @@ def test_render_spp_budget_and_image_content(tmp_path):
     info = json.loads(out.with_suffix(".json").read_text())
     assert info["spp"] == 4
     # Without --threads a render uses every core it may, as `pgi reference` does.
-    assert info["threads"] == len(os.sched_getaffinity(0))
+    assert info["threads"] == available_cores()
 
 
 def test_methods_lists_pt_and_mitsuba():
@@ -557,6 +558,24 @@ def test_checks_after_loading_name_where_the_value_is_written(tmp_path):
     assert not out.exists()
 
 
+def test_without_threads_both_renderers_take_the_cores_they_may_use(tmp_path):
+    """Restricted to one core (as a batch scheduler restricts a job), `pgi render` and
+    `pgi reference` (Dr.Jit's default) both run one thread, not one per core of the machine:
+    a timed render on more threads than cores would be an unfair comparison."""
+    one_core = min(os.sched_getaffinity(0))
+    for command in (["render", "cbox", "--method", "pt"], ["reference", "cbox"]):
+        out = tmp_path / f"{command[0]}.exr"
+        r = subprocess.run(
+            [*PGI, *command, "--spp", "1", "-q", *small(), "-o", str(out)],
+            capture_output=True,
+            text=True,
+            timeout=300,
+            preexec_fn=lambda: os.sched_setaffinity(0, {one_core}),
+        )
+        assert r.returncode == 0, r.stderr
+        assert json.loads(out.with_suffix(".json").read_text())["threads"] == 1, command
+
+
 def test_validate_version_reference_and_every_method_succeed(tmp_path):
     """The success paths a user takes first: each writes what it says and exits 0."""
     from renderer.imageio import read_exr
@@ -566,9 +585,11 @@ def test_validate_version_reference_and_every_method_succeed(tmp_path):
     assert v.returncode == 0 and "cbox-fog" in v.stdout and "ok (" in v.stdout, v.stderr
     assert pgi("--version").stdout.startswith("pgi ")
     ref = tmp_path / "ref.exr"
-    r = pgi("reference", "cbox", "--spp", "4", "--threads", "1", *small(), "-o", str(ref))
+    r = pgi("reference", "cbox", "--spp", "4", *small(), "-o", str(ref))
     assert r.returncode == 0, r.stderr
-    assert read_exr(ref).mean() > 0 and json.loads(ref.with_suffix(".json").read_text())["spp"] == 4
+    info = json.loads(ref.with_suffix(".json").read_text())
+    assert read_exr(ref).mean() > 0 and info["spp"] == 4
+    assert info["threads"] == available_cores()  # without --threads: the cores it may use
     for method in method_ids():
         out = tmp_path / f"{method}.exr"
         r = pgi(

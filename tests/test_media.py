@@ -155,7 +155,9 @@ def smooth_density(shape_zyx, seed: int) -> np.ndarray:
 
 def homogeneous(sigma_t, albedo=(1.0, 1.0, 1.0)):
     scene = _core.Scene()
-    return scene, scene.add_homogeneous_medium(tuple(map(float, sigma_t)), tuple(albedo), 0, 0.0)
+    return scene, scene.add_homogeneous_medium(
+        tuple(map(float, sigma_t)), tuple(albedo), ISOTROPIC, 0.0
+    )
 
 
 # --------------------------------------------------------------------------- cases

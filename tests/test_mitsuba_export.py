@@ -571,9 +571,9 @@ def test_phase_functions_equal_mitsubas():
     wi = np.concatenate([wi / np.linalg.norm(wi, axis=1)[:, None], [-wo, wo]])
     values = np.array([0.2, 0.5, 1.0, 3.0, 9.0])  # strongly forward: a flipped table shows
     cases = [
-        ({"type": "rayleigh"}, _core.eval_phase(2, 0.0, tuple(wo), wi)),
-        ({"type": "hg", "g": 0.6}, _core.eval_phase(1, 0.6, tuple(wo), wi)),
-        ({"type": "hg", "g": -0.3}, _core.eval_phase(1, -0.3, tuple(wo), wi)),
+        ({"type": "rayleigh"}, _core.eval_phase(_core.PhaseType.rayleigh, 0.0, tuple(wo), wi)),
+        ({"type": "hg", "g": 0.6}, _core.eval_phase(_core.PhaseType.hg, 0.6, tuple(wo), wi)),
+        ({"type": "hg", "g": -0.3}, _core.eval_phase(_core.PhaseType.hg, -0.3, tuple(wo), wi)),
         (phase_dict(Phase("tabulated", values=values)), _core.eval_phase_table(values, wo, wi)),
     ]
     ctx = mi.PhaseFunctionContext(None)

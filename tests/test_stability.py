@@ -49,7 +49,7 @@ from renderer.scene.model import Phase, PointLight, Shape
 from test_furnace import FILM, GRID, L, furnace_yaml, grid_density
 from test_media import GridRef, affine, smooth_density
 
-ESTIMATORS = {"delta": 0, "ratio": 1, "residual": 2, "raymarch": 3}
+ESTIMATORS = dict(_core.Estimator.__members__)  # delta, ratio, residual, raymarch
 TRACKERS = ["delta", "ratio", "residual"]  # the unbiased transmittance estimators
 THICKNESS = [1e-4, 1e-2, 1.0, 10.0, 1e2, 1e3]
 GRIDS = ["lumpy", "single-voxel"]
@@ -355,8 +355,8 @@ def test_extreme_hg_pdf_equals_eval(g):
     from a pdf mismatch), even in the narrow peak."""
     u = np.random.default_rng(1).random((200_000, 2))
     wo = (0.2, 0.3, -0.93)
-    wi, pdf = _core.sample_phase(1, g, wo, u)
-    np.testing.assert_allclose(_core.eval_phase(1, g, wo, wi), pdf, rtol=1e-9)
+    wi, pdf = _core.sample_phase(_core.PhaseType.hg, g, wo, u)
+    np.testing.assert_allclose(_core.eval_phase(_core.PhaseType.hg, g, wo, wi), pdf, rtol=1e-9)
     assert np.all(np.isfinite(pdf)) and pdf.max() < 1.1 * (1 + abs(g)) / (
         4 * np.pi * (1 - abs(g)) ** 2
     )
@@ -373,11 +373,13 @@ def test_hg_within_rounding_of_one_stays_finite(g):
     written as a sum of non-negative terms: the pdf was infinite and the MIS weights NaN."""
     wo = np.array([0.0, 0.0, -1.0])
     ahead = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]])  # -wo and wo: one is the peak
-    values = _core.eval_phase(1, g, tuple(wo), ahead)
+    values = _core.eval_phase(_core.PhaseType.hg, g, tuple(wo), ahead)
     peak = (1 + abs(g)) / (4 * np.pi * (1 - abs(g)) ** 2)
     assert np.all(np.isfinite(values)) and values.max() == pytest.approx(peak, rel=1e-6)
     assert values.min() > 0
-    wi, pdf = _core.sample_phase(1, g, tuple(wo), np.random.default_rng(2).random((20_000, 2)))
+    wi, pdf = _core.sample_phase(
+        _core.PhaseType.hg, g, tuple(wo), np.random.default_rng(2).random((20_000, 2))
+    )
     assert np.all(np.isfinite(pdf)) and np.all(pdf > 0) and np.all(np.isfinite(wi))
     # Nearly every sample lies in the peak, on the side the sign of g says.
     assert np.mean(np.sign(g) * (wi @ -wo) > 1 - 1e-6) > 0.999

@@ -354,7 +354,9 @@ def build_parser() -> argparse.ArgumentParser:
     scene_arg(ref)
     ref.add_argument("--spp", type=_positive(int), required=True, help="samples per pixel")
     ref.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
-    ref.add_argument("--threads", type=_positive(int), help="Mitsuba threads (default: all)")
+    ref.add_argument(
+        "--threads", type=_positive(int), help="Mitsuba threads (default: all available cores)"
+    )
     ref.add_argument(
         "-o", "--output", required=True, help="output .exr (a .json sidecar is written)"
     )

@@ -166,19 +166,18 @@ def build_native_scene(scene: Scene, majorant_cell: int = MAJORANT_CELL) -> Nati
     )
 
     emitter = np.full(len(triangles), -1, np.int32)
-    area_lights = 0
     for index, shape in enumerate(scene.shapes):
         if shape.emission is not None:  # kept_faces refused emitters with no triangle left
             members = np.flatnonzero(owner == index).astype(np.int32)
             emitter[members] = core.add_area_light(tuple(map(float, shape.emission)), members)
-            area_lights += 1
     core.set_triangles(triangles, mats, emitter, inside, outside, transition)
 
+    light_ids = []  # the core's index of each of scene.lights
     for light in scene.lights:
         if isinstance(light, PointLight):
-            core.add_point_light(tuple(light.position), tuple(light.intensity))
+            added = core.add_point_light(tuple(light.position), tuple(light.intensity))
         elif isinstance(light, SpotLight):
-            core.add_spot_light(
+            added = core.add_spot_light(
                 tuple(light.position),
                 tuple(light.target - light.position),
                 tuple(light.intensity),
@@ -186,7 +185,10 @@ def build_native_scene(scene: Scene, majorant_cell: int = MAJORANT_CELL) -> Nati
                 math.radians(light.beam_width),
             )
         elif isinstance(light, DirectionalLight):
-            core.add_directional_light(tuple(light.direction), tuple(light.irradiance))
+            added = core.add_directional_light(tuple(light.direction), tuple(light.irradiance))
+        else:
+            raise TypeError(f"no native light for {type(light).__name__}")
+        light_ids.append(added)
 
     forward, right, up = camera_basis(scene.camera, scene.film)
     core.set_camera(
@@ -199,7 +201,6 @@ def build_native_scene(scene: Scene, majorant_cell: int = MAJORANT_CELL) -> Nati
         medium(scene.camera.medium),
     )
     core.finalize()
-    light_ids = [area_lights + i for i in range(len(scene.lights))]  # in the order added above
     return NativeScene(
         core, triangles, keep, medium_ids, inside, outside, transition.astype(bool), light_ids
     )

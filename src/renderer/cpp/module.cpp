@@ -119,6 +119,7 @@ static void add_scene(nb::module_ &m) {
                  l.position = vec(position);
                  l.intensity = vec(intensity);
                  s.lights.push_back(l);
+                 return int(s.lights.size() - 1);  // the light's index
              }, "position"_a, "intensity"_a)
         .def("add_spot_light",
              [](Scene &s, V3 position, V3 direction, V3 intensity, double cutoff, double beam_width) {
@@ -132,6 +133,7 @@ static void add_scene(nb::module_ &m) {
                  l.cos_cutoff = std::cos(cutoff);
                  l.cos_beam = std::cos(l.beam_width);
                  s.lights.push_back(l);
+                 return int(s.lights.size() - 1);  // the light's index
              }, "position"_a, "direction"_a, "intensity"_a, "cutoff"_a, "beam_width"_a)
         .def("add_directional_light",
              [](Scene &s, V3 direction, V3 irradiance) {
@@ -140,6 +142,7 @@ static void add_scene(nb::module_ &m) {
                  l.direction = normalize(vec(direction));
                  l.intensity = vec(irradiance);
                  s.lights.push_back(l);
+                 return int(s.lights.size() - 1);  // the light's index
              }, "direction"_a, "irradiance"_a)
         .def("set_camera",
              [](Scene &s, V3 origin, V3 forward, V3 right, V3 up, int width, int height, int medium) {
