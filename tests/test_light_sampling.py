@@ -22,6 +22,7 @@ The controls: each histogram test rejects a density that is slightly wrong.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -235,12 +236,15 @@ def test_area_light_pdf_and_value(scene, native, light_samples):
 
 def test_power_heuristic_passes_a_nan_on():
     """MIS weights a^2 / (a^2 + b^2); no pdf at all weighs 0, but a NaN pdf must give a NaN
-    weight, so that the film counts the sample as non-finite instead of losing it unseen. A
-    pdf whose square overflows (or an infinite one) still gets its weight, not inf / inf."""
+    weight, so that the film counts the sample as non-finite instead of losing it unseen; so
+    must a negative one. Pdfs whose squares overflow or underflow (or an infinite one) still
+    get their weight, not inf / inf or 0 / 0."""
     assert _core.power_heuristic(1.0, 1.0) == 0.5 and _core.power_heuristic(2.0, 0.0) == 1.0
-    assert _core.power_heuristic(0.0, 0.0) == 0.0
-    for pdfs in ((1.0, math.nan), (math.nan, 1.0), (math.inf, math.inf)):
+    assert _core.power_heuristic(0.0, 0.0) == 0.0 and _core.power_heuristic(0.0, 1e-200) == 0
+    for pdfs in ((1.0, math.nan), (math.nan, 1.0), (math.inf, math.inf), (-1.0, 1.0), (1, -1e-9)):
         assert math.isnan(_core.power_heuristic(*pdfs)), pdfs
+    assert _core.power_heuristic(1e-170, 1e-170) == 0.5 and _core.power_heuristic(1e-200, 0) == 1
+    assert _core.power_heuristic(2e-170, 1e-170) == pytest.approx(0.8, rel=1e-15)
     assert _core.power_heuristic(math.inf, 1.0) == 1.0 and _core.power_heuristic(1.0, math.inf) == 0
     assert _core.power_heuristic(1e200, 1e200) == 0.5
     assert _core.power_heuristic(2e160, 1e160) == pytest.approx(0.8, rel=1e-15)
@@ -379,3 +383,20 @@ def test_directional_light_starts_on_a_disk_covering_the_scene(scene, native, em
     pmf = _core.light_pmf(native.core)[SUN]
     expected = rgb(sun.irradiance) * math.pi * radius**2 / pmf
     np.testing.assert_allclose(e["power"], np.tile(expected, (len(e["pos"]), 1)), rtol=1e-12)
+
+
+def test_each_light_of_the_scene_knows_its_index_in_the_core():
+    """Area lights are added to the core first, then the scene's `lights` in order, each
+    binding returning its index: light paths pick the medium a light emits into by it."""
+    scene = load_scene(
+        Path(__file__).resolve().parent.parent / "scenes" / "cbox" / "scene.yaml",
+        [
+            "lights=[{type: point, position: [0, 0.5, 0], intensity: 1}, "
+            "{type: spot, position: [0, 0.9, 0], target: [0, -1, 0], intensity: 1, "
+            "cutoff_angle: 30, beam_width: 20}, "
+            "{type: directional, direction: [0, -1, 0.1], irradiance: 1}]"
+        ],
+    )
+    native = build_native_scene(scene)
+    area = sum(shape.emission is not None for shape in scene.shapes)
+    assert area == 1 and native.light_ids == [1, 2, 3] and native.core.light_count == 4

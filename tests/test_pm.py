@@ -207,11 +207,11 @@ def test_stats_report_the_radii_and_the_bias():
     assert s["iterations"] == 1 and s["spp"] == 1 and s["nonfinite"] == 0
 
 
-@pytest.mark.parametrize("radius", [0.0, 1e-200])
+@pytest.mark.parametrize("radius", [0.0, 1e-200, 1e-160, -1.0])
 def test_the_gathering_kernel_refuses_a_radius_of_zero(radius):
     """A kernel of radius 0 divides by 0 (every estimate 0 * inf), and so does one whose
-    square underflows: the native gather refuses it, whatever schedule asked for it, instead
-    of filling the image with NaN."""
+    1 / (pi r^2) overflows; a negative radius is no radius: the native gather refuses them,
+    whatever schedule asked for them, instead of filling the image with NaN."""
 
     class ZeroSurfaceRadius(PhotonMapping):
         def radii(self, iteration: int) -> tuple[float, float]:

@@ -117,13 +117,15 @@ private:
 };
 
 // Power heuristic with beta = 2 (Veach 1997, eq. 9.13) for two strategies.
-// A NaN pdf gives a NaN weight, so the sample is counted as non-finite instead of vanishing.
+// A NaN or negative pdf gives a NaN weight, so the sample is counted as non-finite instead
+// of vanishing.
 inline double power_heuristic(double pdf_a, double pdf_b) {
+    if (!(pdf_a >= 0 && pdf_b >= 0)) return std::numeric_limits<double>::quiet_NaN();
     double a = pdf_a * pdf_a, b = pdf_b * pdf_b;
-    if (a + b > 0 && a + b < kInf) return a / (a + b);
-    if (a + b == 0) return 0.0;
-    // A square beyond double's range (a pdf above ~1e154, or infinite) would give inf / inf:
-    // the ratio of the pdfs gives the weight instead (NaN for a NaN pdf or two infinite ones).
+    if (a + b >= std::numeric_limits<double>::min() && a + b < kInf) return a / (a + b);
+    if (pdf_a == 0) return 0.0;
+    // Squares beyond double's range (pdfs below ~1e-154 or above ~1e154, or infinite) would
+    // give 0 / 0 or inf / inf: the pdfs' ratio gives the weight (NaN for two infinite ones).
     double r = pdf_b / pdf_a;
     return 1 / (1 + r * r);
 }

@@ -110,7 +110,7 @@ static void add_scene(nb::module_ &m) {
                  l.type = LightType::Area;
                  l.emitter = int(s.area_emitters.size() - 1);
                  s.lights.push_back(l);
-                 return l.emitter;
+                 return l.emitter;  // the emitter's index, which its triangles name (not the light's)
              }, "radiance"_a, "triangles"_a)
         .def("add_point_light",
              [](Scene &s, V3 position, V3 intensity) {

@@ -109,11 +109,11 @@ RGB PhotonGatherer::surface_estimate(const GatherPath &p, int tri, const Vec3 &x
 void PhotonGatherer::shade(const Hits &hits, double surface_radius, double volume_radius) {
     const Scene &scene = *scene_;
     hits.expect(active_.size(), "pm shade");
-    // The kernels divide by pi r^2: a radius of 0, or one whose square underflows to 0, would
-    // make every estimate 0 * inf.
-    auto usable = [](double r) { return std::isfinite(r) && kPi * r * r > 0; };
+    // The kernels divide by pi r^2: a radius of 0, or one so small that 1 / (pi r^2) is
+    // infinite, would make every estimate without a photon 0 * inf.
+    auto usable = [](double r) { return r > 0 && std::isfinite(r) && std::isfinite(1 / (kPi * r * r)); };
     if (!(usable(surface_radius) && usable(volume_radius)))
-        throw std::invalid_argument("pm shade: radii must be positive and finite, with a square above 0");
+        throw std::invalid_argument("pm shade: radii must be positive and finite, with 1 / (pi r^2) finite");
     uint64_t lookups = 0, surface_accepted = 0, volume_accepted = 0;
     const DepthLimit specular_limit = depth_.unlimited() ? DepthLimit(kMaxSpecularBounces) : depth_;
 #pragma omp parallel for schedule(dynamic, 64) num_threads(threads_) \
