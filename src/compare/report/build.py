@@ -236,12 +236,12 @@ def _about_scene(
             if others:
                 verdict += f"; tied with {e(', '.join(others))}"
             parts.append(f" <b>Won</b> at {e(T.budget_label(last.budget))}: {e(won)} ({verdict}).")
-            ranked = summary[(summary.scene == scene) & summary[f"{metric}_mean"].notna()]
-            largest = ranked.budget.max()
-            if last.budget < largest:
-                parts.append(
-                    f" At {e(T.budget_label(largest))} every method overran its budget: none won."
-                )
+        ranked = summary[(summary.scene == scene) & summary[f"{metric}_mean"].notna()]
+        if best.empty and not ranked.empty:
+            parts.append(" No method stayed within any budget: none won.")
+        elif not best.empty and last.budget < ranked.budget.max():
+            largest = T.budget_label(ranked.budget.max())
+            parts.append(f" At {e(largest)} no method stayed within its budget: none won.")
         parts.append("</p>")
     return "".join(parts)
 
