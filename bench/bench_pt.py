@@ -15,8 +15,8 @@
     against a high-spp Mitsuba reference cached under bench/.cache/, each less the
     reference's own relMSE (estimated from its two independent halves). A relMSE less than
     10x the reference's own is marked reference-limited and gets no ratio.
-(c) Samples per second of pt and Mitsuba, and the ray rate Mitsuba would have at pt's rays
-    per sample (Mitsuba does not count its rays).
+(c) From the equal-time runs: samples per second of pt and Mitsuba, pt's ray rate, and the
+    ray rate Mitsuba would have at pt's rays per sample (Mitsuba does not count its rays).
 (d) Where pt's time goes: time per traced ray in Embree (`intersect`, `occluded`) and in each
     native pass of the lanes (next_rays, shade, shadow_rays, resolve_shadows or
     resolve_occlusion), summed over the lanes and divided by their number.
@@ -217,6 +217,7 @@ def main() -> None:
             sample_rates[method_id] = samples / stats["seconds"]
             if method_id == "pt":
                 rays_per_sample = stats["rays"] / samples
+                pt_timed_rate = stats["rays"] / stats["seconds"]  # start-up included, as Mitsuba's
             # The reference's own error adds to each measured one (independent noise).
             errors[method_id] = relmse_less_reference(image, ref, floor)
             limited = "" if errors[method_id][1] else ", reference-limited"
@@ -238,12 +239,14 @@ def main() -> None:
         )
         # Mitsuba does not count its rays; its paths follow the same rules (max depth,
         # roulette, one shadow ray per vertex), so at pt's rays per sample its samples per
-        # second say roughly what ray rate the same measure would give it.
+        # second say roughly what ray rate the same measure would give it. Both from the
+        # timed runs (first iteration included), not from pt's best warm wave above.
         mitsuba_rays = sample_rates["mitsuba"] * rays_per_sample
         print(
-            f"{name:<10} samples per second: pt {sample_rates['pt'] / 1e6:.3f} M, mitsuba "
-            f"{sample_rates['mitsuba'] / 1e6:.3f} M; at pt's {rays_per_sample:.2f} rays per "
-            f"sample, mitsuba's would be {mitsuba_rays / 1e6:.2f} Mrays/s "
+            f"{name:<10} timed runs: pt {sample_rates['pt'] / 1e6:.3f} M samples/s, "
+            f"{pt_timed_rate / 1e6:.2f} Mrays/s ({pt_timed_rate / raw_rate:.0%} of raw embreex); "
+            f"mitsuba {sample_rates['mitsuba'] / 1e6:.3f} M samples/s, at pt's "
+            f"{rays_per_sample:.2f} rays per sample {mitsuba_rays / 1e6:.2f} Mrays/s "
             f"({mitsuba_rays / raw_rate:.0%} of raw embreex)",
             flush=True,
         )
