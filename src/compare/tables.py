@@ -185,6 +185,11 @@ def tied(a_mean: float, a_std: float, a_n: int, b_mean: float, b_std: float, b_n
     return abs(math.log(a_mean / b_mean)) < critical * math.sqrt(va + vb)
 
 
+def ranked_cells(summary: pd.DataFrame, metric: str) -> pd.DataFrame:
+    """The cells that have a mean ``metric``: the ones a budget's winner is chosen among."""
+    return summary.dropna(subset=[f"{metric}_mean"])
+
+
 def best_methods(summary: pd.DataFrame, metric: str) -> pd.DataFrame:
     """The method with the lowest mean ``metric`` per scene and budget, and in ``tied_with``
     the other methods (comma-separated) that seeds cannot tell from it. A cell that overran
@@ -192,7 +197,7 @@ def best_methods(summary: pd.DataFrame, metric: str) -> pd.DataFrame:
     stopped short of it may, having had less time; a budget whose cells all overran has no
     winner."""
     col, std = f"{metric}_mean", f"{metric}_std"
-    valid = summary.dropna(subset=[col])
+    valid = ranked_cells(summary, metric)
     if "render_seconds_mean" in valid:
         in_time = [
             not over_budget(t, b)

@@ -236,7 +236,7 @@ def _about_scene(
             if others:
                 verdict += f"; tied with {e(', '.join(others))}"
             parts.append(f" <b>Won</b> at {e(T.budget_label(last.budget))}: {e(won)} ({verdict}).")
-        ranked = summary[(summary.scene == scene) & summary[f"{metric}_mean"].notna()]
+        ranked = T.ranked_cells(summary[summary.scene == scene], metric)
         if best.empty and not ranked.empty:
             parts.append(" No method stayed within any budget: none won.")
         elif not best.empty and last.budget < ranked.budget.max():
@@ -508,6 +508,7 @@ def build_index(spec: dict[str, Any]) -> None:
     body.append(f"<h2>Best method per scene and budget ({e(_metric_label(metric))})</h2>")
     budgets = sorted(summary.budget.unique())
     ok = summary.set_index(["scene", "method", "budget"])["ref_ok"]
+    ranked = T.ranked_cells(summary, metric)
     win = ['<table class="overview"><thead><tr><th>scene</th>']
     win += [f"<th>{e(T.budget_label(b))}</th>" for b in budgets]
     win.append("</tr></thead><tbody>")
@@ -516,9 +517,7 @@ def build_index(spec: dict[str, Any]) -> None:
         for b in budgets:
             r = best[(best.scene == s) & (best.budget == b)]
             if r.empty:
-                ran = (
-                    (summary.scene == s) & (summary.budget == b) & summary[f"{metric}_mean"].notna()
-                ).any()
+                ran = ((ranked.scene == s) & (ranked.budget == b)).any()
                 # every cell with a value overran the budget: none is an equal-time result
                 win.append('<td class="note">none within budget</td>' if ran else "<td></td>")
                 continue
