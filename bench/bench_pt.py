@@ -213,10 +213,8 @@ def main() -> None:
         errors, runs, sample_rates = {}, {}, {}
         for method_id in ("pt", "mitsuba"):
             image, stats = timed(method_id, scene, args.seconds, args.threads, seed=1)
-            samples = stats["spp"] * image.shape[0] * image.shape[1]
-            sample_rates[method_id] = samples / stats["seconds"]
+            sample_rates[method_id] = stats["spp"] * image[..., 0].size / stats["seconds"]
             if method_id == "pt":
-                rays_per_sample = stats["rays"] / samples
                 pt_timed_rate = stats["rays"] / stats["seconds"]  # start-up included, as Mitsuba's
             # The reference's own error adds to each measured one (independent noise).
             errors[method_id] = relmse_less_reference(image, ref, floor)
@@ -241,6 +239,7 @@ def main() -> None:
         # roulette, one shadow ray per vertex), so at pt's rays per sample its samples per
         # second say roughly what ray rate the same measure would give it. Both from the
         # timed runs (first iteration included), not from pt's best warm wave above.
+        rays_per_sample = pt_timed_rate / sample_rates["pt"]
         mitsuba_rays = sample_rates["mitsuba"] * rays_per_sample
         print(
             f"{name:<10} timed runs: pt {sample_rates['pt'] / 1e6:.3f} M samples/s, "
