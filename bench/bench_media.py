@@ -65,17 +65,17 @@ def pt_shadow_rays(name: str, n_rays: int, seed: int, res: int = 32) -> list[Ray
     # One lane (whatever --threads): its batches, and so the segments recorded, come in one
     # order every run.
     method = PathTracing(scene, seed=seed, threads=1, params={"spp_per_wave": 1})
-    if method.lanes[0].shadows_any_hit:
+    if method.camera_paths.lanes[0].shadows_any_hit:
         raise SystemExit(f"{name}: no null boundaries, hence no media to measure")
     null = method.native.per_triangle(
         scene, [scene.materials[s.material].type == "null" for s in scene.shapes]
     )
-    tracer, rays = method.tracer, []
+    tracer, rays = method.camera_paths.tracer, []  # the tracer pt's lanes call
     intersect = tracer.intersect
 
     def recording(batch, n):
         hits = intersect(batch, n)
-        if batch is method.shadows[0]:
+        if batch is method.camera_paths.shadows[0]:
             tfar, prim = np.asarray(hits[0], np.float64), np.asarray(hits[1])
             arrives = prim < 0
             length = np.where(arrives, batch.tmax[:n], tfar)

@@ -67,7 +67,7 @@ def raw_embree_rate(scene, threads: int, waves: int = 4) -> tuple[float, float, 
         seconds = time.perf_counter() - start
         pt_rate = max(pt_rate, (method.tracer.rays_traced - rays) / seconds)
 
-    tracer = method.tracer
+    tracer = method.camera_paths.tracer  # the one pt's lanes call
     batches = defaultdict(list)  # lane thread -> (query, origins, directions, tmax) per call
     inside = copying = 0.0  # thread-seconds of the recorded wave's Embree calls and copies
     lock = threading.Lock()
@@ -173,13 +173,14 @@ def pass_breakdown(scene, threads: int, waves: int = 10) -> tuple[dict[str, floa
     method.run_iteration(0)
     seconds: dict[str, float] = {}
     lock = threading.Lock()
-    method.lanes = [_PassTimer(lane, seconds, lock) for lane in method.lanes]
-    tracer = method.tracer
-    method.tracer = _PassTimer(tracer, seconds, lock)
+    wave = method.camera_paths
+    wave.lanes = [_PassTimer(lane, seconds, lock) for lane in wave.lanes]
+    tracer = wave.tracer
+    wave.tracer = _PassTimer(tracer, seconds, lock)
     rays = tracer.rays_traced
     for i in range(1, waves + 1):
         method.run_iteration(i)
-    return {k: v / len(method.lanes) for k, v in seconds.items()}, tracer.rays_traced - rays
+    return {k: v / len(wave.lanes) for k, v in seconds.items()}, tracer.rays_traced - rays
 
 
 def timed(

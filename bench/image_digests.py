@@ -14,8 +14,8 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from benchlib import at_least
 
+from benchlib import at_least
 from renderer.methods import get_method, method_ids
 from renderer.scene import load_scene
 from renderer.scene.loader import find_scene_file

@@ -18,7 +18,6 @@ from conftest import load_small
 from parity import ALPHA, Estimate, agreement, mitsuba, ours
 from renderer.engine import build_native_scene
 from renderer.errors import PgiError
-from renderer.methods.lightpath import LightPaths
 from renderer.methods.lt import LightTracing
 from renderer.methods.pt import PathTracing
 from renderer.scene import load_scene
@@ -282,21 +281,18 @@ def test_unknown_parameter_is_a_clear_error():
         LightTracing(load_small("cbox", 8, 8), seed=0, threads=1, params={"spp": 3})
 
 
-def _light_paths(name: str, paths: int = 1 << 14, overrides: tuple[str, ...] = (), **kw):
+def _light_paths(
+    name: str,
+    paths: int = 1 << 14,
+    overrides: tuple[str, ...] = (),
+    threads: int = 2,
+    **kw,
+):
+    """One iteration of `paths` light paths through scene `name` (seed 9), as lt traces them."""
     scene = load_small(name, 8, 8, overrides)
-    lt = LightTracing(scene, seed=0, threads=2, params={"light_paths": paths})
-    lp = LightPaths(
-        lt.native,
-        lt.tracer,
-        scene,
-        seed=9,
-        threads=2,
-        paths=paths,
-        paths_param="light_paths",
-        max_records=1 << 22,
-        **kw,
-    )
-    lp.trace(0)
+    lt = LightTracing(scene, seed=9, threads=threads, params={"light_paths": paths})
+    lp = lt.light_paths_wavefront(paths, "light_paths", 1 << 22, **kw)
+    lp.run(0)
     return lp
 
 
@@ -362,19 +358,7 @@ def test_records_follow_depth_and_medium_rules():
 
 
 def test_vertex_order_is_deterministic_across_threads():
-    a = _light_paths("cbox-fog", 4096)
-    b_lt = LightTracing(load_small("cbox-fog", 8, 8), seed=0, threads=1, params={})
-    b = LightPaths(
-        b_lt.native,
-        b_lt.tracer,
-        load_small("cbox-fog", 8, 8),
-        seed=9,
-        threads=1,
-        paths=4096,
-        paths_param="light_paths",
-        max_records=1 << 22,
-    )
-    b.trace(0)
+    a, b = _light_paths("cbox-fog", 4096, threads=2), _light_paths("cbox-fog", 4096, threads=1)
     va, vb = a.kernel.vertices(), b.kernel.vertices()
     for key in va:
         assert np.array_equal(va[key], vb[key]), key

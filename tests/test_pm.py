@@ -208,20 +208,21 @@ def test_stats_report_the_radii_and_the_bias():
 
 
 @pytest.mark.parametrize("radius", [0.0, 1e-200, 1e-160, -1.0])
-def test_the_gathering_kernel_refuses_a_radius_of_zero(radius):
+@pytest.mark.parametrize("which", ["surface", "volume"])
+def test_the_gathering_kernel_refuses_a_radius_of_zero(radius, which):
     """A kernel of radius 0 divides by 0 (every estimate 0 * inf), and so does one whose
     1 / (pi r^2) overflows; a negative radius is no radius: the native gather refuses them,
-    whatever schedule asked for them, instead of filling the image with NaN."""
+    whatever asked for them (its schedules check each iteration's radii again), instead of
+    filling the image with NaN."""
+    from renderer import _core
 
-    class ZeroSurfaceRadius(PhotonMapping):
-        def radii(self, iteration: int) -> tuple[float, float]:
-            return radius, self.volume_radius
-
-    method = ZeroSurfaceRadius(
-        load_small("cbox-fog", 8, 8), seed=0, threads=1, params={"photons": 256}
-    )
+    method = PhotonMapping(load_small("cbox-fog", 8, 8), seed=0, threads=1, params={"photons": 8})
+    radii = {"surface": (radius, 0.1), "volume": (0.1, radius)}[which]
     with pytest.raises(ValueError, match="radii must be positive"):
-        method.run_iteration(0)
+        _core.PhotonMapping(
+            method.native.core, method.light_paths.kernel, 12, 0, 1, 1,
+            radii[0], 1.0, radii[1], 1.0,
+        )  # fmt: skip
 
 
 def test_photon_memory_bound_is_an_error():

@@ -123,9 +123,9 @@ def test_occlusion_queries_give_the_image_of_closest_hits(name):
     scene = load_small(name, 24, 24)
     any_hit = PathTracing(scene, seed=5, threads=2, params={"spp_per_wave": 2})
     closest = PathTracing(scene, seed=5, threads=2, params={"spp_per_wave": 2})
-    assert all(lane.shadows_any_hit for lane in any_hit.lanes)
-    counter = any_hit.tracer.occluded = _CountingOcclusion(any_hit.tracer)
-    closest.lanes = [_ClosestHitShadows(lane) for lane in closest.lanes]
+    assert all(lane.shadows_any_hit for lane in any_hit.camera_paths.lanes)
+    counter = any_hit.camera_paths.tracer.occluded = _CountingOcclusion(any_hit.camera_paths.tracer)
+    closest.camera_paths.lanes = [_ClosestHitShadows(lane) for lane in closest.camera_paths.lanes]
     for i in range(3):
         any_hit.run_iteration(i)
         closest.run_iteration(i)
@@ -135,7 +135,8 @@ def test_occlusion_queries_give_the_image_of_closest_hits(name):
 
 
 def test_occlusion_query_refused_where_shadow_rays_cross_null_boundaries():
-    lane = PathTracing(load_small("cbox-fog", 8, 8), seed=0, threads=1, params={}).lanes[0]
+    method = PathTracing(load_small("cbox-fog", 8, 8), seed=0, threads=1, params={})
+    lane = method.camera_paths.lanes[0]
     assert not lane.shadows_any_hit
     with pytest.raises(ValueError, match="null boundaries"):
         lane.resolve_occlusion(np.zeros(0, np.int32))
@@ -199,9 +200,9 @@ def test_an_error_in_one_lane_ends_the_wave_and_the_next_wave_runs(failing, thre
     params = {"spp_per_wave": 2, "slots_per_lane": 16}
     method = PathTracing(scene, seed=2, threads=threads, params=params)
     reference = PathTracing(scene, seed=2, threads=1, params={"spp_per_wave": 2})
-    intersect, calls, main_done = method.tracer.intersect, [], threading.Event()
-    lanes = method.lanes
-    method.lanes = [_SignalsItsEnd(lanes[0], main_done), *lanes[1:]]
+    intersect, calls, main_done = method.camera_paths.tracer.intersect, [], threading.Event()
+    lanes = method.camera_paths.lanes
+    method.camera_paths.lanes = [_SignalsItsEnd(lanes[0], main_done), *lanes[1:]]
     failed_at, failing_thread = [], []  # the number of calls when the lane failed; its thread
 
     def failing_intersect(batch, n):
@@ -219,14 +220,14 @@ def test_an_error_in_one_lane_ends_the_wave_and_the_next_wave_runs(failing, thre
             raise RuntimeError("lane failed")
         return intersect(batch, n)
 
-    method.tracer.intersect = failing_intersect
+    method.camera_paths.tracer.intersect = failing_intersect
     with pytest.raises(RuntimeError, match="lane failed"):
         method.run_iteration(0)
     # the wave has hundreds of steps; every other lane ended within its step (an extension
     # ray and a few shadow segments) of the failure
     assert len(failed_at) == 1 and len(calls) <= failed_at[0] + 4 * (threads - 1)
-    del method.tracer.intersect
-    method.lanes = lanes
+    del method.camera_paths.tracer.intersect
+    method.camera_paths.lanes = lanes
     for i in range(2):
         method.run_iteration(i)
         reference.run_iteration(i)
@@ -249,8 +250,9 @@ def test_a_signal_while_waiting_for_the_other_lanes_stops_them_before_it_is_rais
 
     scene = load_small("cbox-fog", 32, 32)
     method = PathTracing(scene, seed=2, threads=2, params={"slots_per_lane": 16})
-    intersect, main_done, lanes = method.tracer.intersect, threading.Event(), method.lanes
-    method.lanes = [_SignalsItsEnd(lanes[0], main_done), *lanes[1:]]
+    intersect, main_done = method.camera_paths.tracer.intersect, threading.Event()
+    lanes = method.camera_paths.lanes
+    method.camera_paths.lanes = [_SignalsItsEnd(lanes[0], main_done), *lanes[1:]]
     pool_calls, signalled = [], []
 
     def slow_on_the_pool(batch, n):  # its share of the wave takes seconds
@@ -264,7 +266,7 @@ def test_a_signal_while_waiting_for_the_other_lanes_stops_them_before_it_is_rais
             signalled.append(time.monotonic())
             signal.pthread_kill(threading.main_thread().ident, signal.SIGUSR1)
 
-    method.tracer.intersect = slow_on_the_pool
+    method.camera_paths.tracer.intersect = slow_on_the_pool
     previous = signal.signal(signal.SIGUSR1, handler)
     try:
         threading.Thread(target=signal_once_main_is_done, daemon=True).start()
@@ -277,8 +279,8 @@ def test_a_signal_while_waiting_for_the_other_lanes_stops_them_before_it_is_rais
     assert signalled and raised - signalled[0] < 1.0
     assert len(pool_calls) == calls  # nothing traced after run_iteration raised
     assert all(t < raised for t in pool_calls)
-    del method.tracer.intersect
-    method.lanes = lanes
+    del method.camera_paths.tracer.intersect
+    method.camera_paths.lanes = lanes
     method.run_iteration(1)  # no interrupt left pending
     assert method.iterations == 1
 
@@ -292,26 +294,13 @@ _SPOILED_RAY_BUFFERS = {
 
 def _ray_writers(method_id: str) -> list:
     """Every binding through which a method's kernels write rays into the caller's buffers,
-    as calls taking those three buffers."""
+    as calls taking those three buffers: each lane's next_rays and shadow_rays."""
     from renderer.methods import get_method
 
     scene = load_small("cbox-fog", 8, 8)
     method = get_method(method_id)(scene, seed=0, threads=1, params={})
-    if method_id == "pt":
-        lane = method.lanes[0]
-        return [lane.next_rays, lane.shadow_rays]
-    light = method.light_paths.kernel
-    writers = [lambda *b: light.begin_iteration(0, *b), light.next_rays]
-    kernel = method.kernel
-    if method_id == "lt":
-        return writers
-    if method_id == "ppb":
-        writers.append(lambda *b: kernel.begin_wave(0, *b))
-    else:
-        writers.append(lambda *b: kernel.begin_camera(0, *b))
-    if hasattr(kernel, "shadow_rays"):
-        writers.append(kernel.shadow_rays)
-    return [*writers, kernel.next_rays]
+    lanes = [lane for wave in method.wavefronts for lane in wave.lanes]
+    return [write for lane in lanes for write in (lane.next_rays, lane.shadow_rays)]
 
 
 @pytest.mark.parametrize("spoil", list(_SPOILED_RAY_BUFFERS))

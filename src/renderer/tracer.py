@@ -31,6 +31,18 @@ class RayBatch:
         return self.origins, self.directions, self.tmax
 
 
+class _RayCounter:
+    """Rays traced, counted from any thread."""
+
+    def __init__(self) -> None:
+        self.rays = 0
+        self._lock = threading.Lock()
+
+    def add(self, n: int) -> None:
+        with self._lock:
+            self.rays += n
+
+
 class EmbreeTracer:
     """All scene triangles in one Embree mesh; primitive ids index the native triangle list.
     With threads > 1 a large batch is split across threads; with threads == 1 every batch is
@@ -39,11 +51,25 @@ class EmbreeTracer:
     def __init__(self, triangles: np.ndarray, threads: int) -> None:
         self._scene = rtcore_scene.EmbreeScene()
         TriangleMesh(self._scene, np.ascontiguousarray(triangles, dtype=np.float32))
+        self._counter = _RayCounter()
+        self._setup(threads)
+
+    def _setup(self, threads: int) -> None:
         self.threads = max(1, threads)
         # The calling thread traces a chunk itself: the pool holds the other threads.
         self._pool = ThreadPoolExecutor(self.threads - 1) if self.threads > 1 else None
-        self.rays_traced = 0
-        self._count_lock = threading.Lock()  # callers on several threads count their rays
+
+    def single_threaded(self) -> EmbreeTracer:
+        """The same scene traced on the calling thread only, its rays counted with this
+        tracer's: for callers that trace from several threads at once (pt's lanes)."""
+        view = object.__new__(EmbreeTracer)
+        view._scene, view._counter = self._scene, self._counter
+        view._setup(1)
+        return view
+
+    @property
+    def rays_traced(self) -> int:
+        return self._counter.rays
 
     def _closest(self, batch: RayBatch, lo: int, hi: int) -> dict:
         return self._scene.run(
@@ -57,8 +83,7 @@ class EmbreeTracer:
 
     def _split(self, run, batch: RayBatch, n: int) -> list:
         """run(batch, lo, hi) over the first n rays, in one chunk per thread when worth it."""
-        with self._count_lock:
-            self.rays_traced += n
+        self._counter.add(n)
         chunks = self.threads if self._pool and n >= 2 * _MIN_RAYS_PER_THREAD else 1
         if chunks == 1:
             return [run(batch, 0, n)]

@@ -1,6 +1,6 @@
-// Helpers shared by the binding files: array conversion, ray/hit buffers,
-// results handed back to numpy. Each method binds itself in its own file with
-// a `void bind_<method>(nb::module_ &)` called from module.cpp.
+// Helpers shared by the binding files: array conversion, ray/hit buffers, results handed
+// back to numpy, the one helper that binds every kernel's passes (bind_kernel). Each method
+// binds itself in a file of its own, registered with PGI_BINDING.
 #pragma once
 
 #include <nanobind/nanobind.h>
@@ -16,7 +16,7 @@
 #include <type_traits>
 #include <vector>
 
-#include "wavefront.h"
+#include "passes.h"
 
 namespace pgi::bind {
 
@@ -117,29 +117,73 @@ inline NumpyOut<double> film_image(const Film &f) {
 }
 
 
-// The shadow-ray passes of every kernel with a ShadowQueue: write the next
-// segments, then resolve them from Embree's closest hits (tfar, primitive id)
-// or, when no surface of the scene is a null boundary (`shadows_any_hit`),
-// from the cheaper occlusion query (`blocked` >= 0 where something blocks).
-template <typename Kernel>
-void def_shadow_passes(nb::class_<Kernel> &cls) {
-    cls.def("shadow_rays",
-            [](Kernel &k, Array<float> o, Array<float> d, Array<float> t) {
+// The lane passes of the iteration protocol (passes.h): next_rays / shade, and the shadow-ray
+// passes, resolved from Embree's closest hits (tfar, primitive id) or, when no surface of the
+// scene is a null boundary (`shadows_any_hit`), from the cheaper occlusion query (`blocked`
+// >= 0 where something blocks).
+template <typename Lane>
+void bind_lane_passes(nb::class_<Lane> &cls) {
+    cls.def("next_rays",
+            [](Lane &l, Array<float> o, Array<float> d, Array<float> t) {
                 RayBuffers b = ray_buffers(o, d, t);
-                return released([&] { return k.shadow_rays(b); });
+                return released([&] { return l.next_rays(b); });
             }, "o"_a.noconvert(), "d"_a.noconvert(), "t"_a.noconvert())
+        .def("shade",
+             [](Lane &l, Array<float> tfar, Array<int32_t> prim, Array<float> u, Array<float> v) {
+                 Hits h = hits_of(tfar, prim, u, v);
+                 return released([&] { return l.shade(h); });
+             }, "tfar"_a, "prim"_a, "u"_a, "v"_a)
+        .def("shadow_rays",
+             [](Lane &l, Array<float> o, Array<float> d, Array<float> t) {
+                 RayBuffers b = ray_buffers(o, d, t);
+                 return released([&] { return l.shadow_rays(b); });
+             }, "o"_a.noconvert(), "d"_a.noconvert(), "t"_a.noconvert())
         .def("resolve_shadows",
-             [](Kernel &k, Array<float> tfar, Array<int32_t> prim) {
+             [](Lane &l, Array<float> tfar, Array<int32_t> prim) {
                  check_len(tfar.shape(0), prim.shape(0), "tfar");
                  Hits h{tfar.data(), nullptr, nullptr, prim.data(), prim.shape(0)};
-                 released([&] { k.resolve_shadows(h); });
-             })
+                 released([&] { l.resolve_shadows(h); });
+             }, "tfar"_a, "prim"_a)
         .def("resolve_occlusion",
-             [](Kernel &k, Array<int32_t> blocked) {
+             [](Lane &l, Array<int32_t> blocked) {
                  Hits h{nullptr, nullptr, nullptr, blocked.data(), blocked.shape(0), true};
-                 released([&] { k.resolve_shadows(h); });
-             })
-        .def_prop_ro("shadows_any_hit", [](const Kernel &k) { return !k.scene().has_null_surfaces; });
+                 released([&] { l.resolve_shadows(h); });
+             }, "blocked"_a)
+        .def_prop_ro("capacity", [](const Lane &l) { return l.capacity(); })
+        .def_prop_ro("shadow_slots", [](const Lane &l) { return l.shadow_slots(); })
+        .def_prop_ro("shadows_any_hit", [](const Lane &l) { return !l.scene().has_null_surfaces; });
+}
+
+template <typename Kernel, typename = void>
+struct has_film : std::false_type {};
+template <typename Kernel>
+struct has_film<Kernel, std::void_t<decltype(std::declval<const Kernel &>().film())>> : std::true_type {};
+
+// Binds a kernel under `name` with the iteration protocol (passes.h): begin / end, its lanes
+// (a kernel of one lane is its own lane; another's lanes are bound as `lane_name`), their
+// passes, its density lookups and, if it has a film, the image. The caller adds the
+// constructor and what is the kernel's own.
+template <typename Kernel>
+nb::class_<Kernel> bind_kernel(nb::module_ &m, const char *name, const char *lane_name = nullptr) {
+    using Lane = typename Kernel::Lane;
+    nb::class_<Kernel> cls(m, name);
+    if constexpr (std::is_same_v<Lane, Kernel>) {
+        bind_lane_passes(cls);
+    } else {
+        nb::class_<Lane> lane(m, lane_name);
+        bind_lane_passes(lane);
+    }
+    cls.def("begin", [](Kernel &k, int64_t iteration) { released([&] { k.begin(iteration); }); }, "iteration"_a)
+        .def("end", [](Kernel &k) { released([&] { k.end(); }); })
+        .def_prop_ro("lanes", [](const Kernel &k) { return k.lanes(); })
+        .def("lane", [](Kernel &k, int i) -> Lane & { return k.lane(i); }, "index"_a, nb::rv_policy::reference_internal)
+        .def_prop_ro("density_lookups", [](const Kernel &k) { return k.density_lookups(); });
+    if constexpr (has_film<Kernel>::value) {
+        cls.def("image", [](const Kernel &k) { return film_image(k.film()); })
+            .def_prop_ro("samples_per_pixel", [](const Kernel &k) { return k.film().samples_per_pixel; })
+            .def_prop_ro("nonfinite", [](const Kernel &k) { return k.film().nonfinite; });
+    }
+    return cls;
 }
 
 // Probes of a phase function for tests: what the renderer samples from uniform
@@ -166,11 +210,16 @@ inline auto probe_phase_eval(const Phase &ph, const V3 &wo, Array<double> wi) {
     return to_numpy(std::move(out), {n});
 }
 
-// One per method file; module.cpp calls each.
-void bind_pt(nb::module_ &m);
-void bind_lt(nb::module_ &m);
-void bind_pm(nb::module_ &m);
-void bind_media(nb::module_ &m);
-void bind_ppb(nb::module_ &m);
+// Each binding file registers its function here (PGI_BINDING), and the module calls them
+// all, in the order of their names: a new file needs no line anywhere else.
+using Binder = void (*)(nb::module_ &);
+inline std::vector<std::pair<std::string, Binder>> &binders() {
+    static std::vector<std::pair<std::string, Binder>> all;
+    return all;
+}
+struct RegisterBinding {
+    RegisterBinding(const char *name, Binder bind) { binders().emplace_back(name, bind); }
+};
+#define PGI_BINDING(name, function) static const ::pgi::bind::RegisterBinding pgi_binding_##function(name, function)
 
 }  // namespace pgi::bind

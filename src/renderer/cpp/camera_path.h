@@ -38,10 +38,9 @@ struct samples_free_flights : std::false_type {};
 template <typename Path>
 struct samples_free_flights<Path, std::void_t<decltype(std::declval<Path &>().spectral)>> : std::true_type {};
 
-// Box-filtered camera sample through `pixel`, writing its first ray to slot k.
+// Box-filtered camera sample through `pixel`: the path's first ray is (p.pos, p.dir).
 template <typename Path>
-void start_camera_path(Path &p, const Camera &cam, int64_t pixel, Sampler rng, const RayBuffers &out,
-                       size_t k) {
+void start_camera_path(Path &p, const Camera &cam, int64_t pixel, Sampler rng) {
     // Copied from a default path: value-initialising a temporary compiled to `rep stos`,
     // whose start-up cost made this the slowest line of the camera pass.
     static const Path fresh{};
@@ -55,31 +54,29 @@ void start_camera_path(Path &p, const Camera &cam, int64_t pixel, Sampler rng, c
     p.dir = cam.direction(fx, fy);
     p.medium = cam.medium;
     p.alive = true;
-    out.put(k, p.pos, p.dir, kInf);
 }
 
-// Starts path number `path` of wave `iteration`, a wave of spp samples per pixel, writing
-// its first ray to slot k: it samples pixel path % npix, with its random stream keyed by
-// (stream_seed, sample index, pixel), so a pixel's samples do not depend on the wave size.
+// Starts path number `path` of wave `iteration`, a wave of spp samples per pixel: it samples
+// pixel path % npix, with its random stream keyed by (stream_seed, sample index, pixel), so a
+// pixel's samples do not depend on the wave size.
 template <typename Path>
-void start_camera_sample(Path &p, const Camera &cam, int64_t path, int64_t iteration, int spp, uint64_t stream_seed,
-                         const RayBuffers &out, size_t k) {
+void start_camera_sample(Path &p, const Camera &cam, int64_t path, int64_t iteration, int spp, uint64_t stream_seed) {
     const int64_t npix = int64_t(cam.width) * cam.height;
     const int64_t pixel = path % npix, sample = iteration * spp + path / npix;
-    start_camera_path(p, cam, pixel, Sampler(stream_key(stream_seed, uint64_t(sample), uint64_t(pixel))), out, k);
+    start_camera_path(p, cam, pixel, Sampler(stream_key(stream_seed, uint64_t(sample), uint64_t(pixel))));
 }
 
-// Starts a whole wave of spp camera paths per pixel (start_camera_sample). Fills `active`.
+// Starts a whole wave of spp camera paths per pixel (start_camera_sample) and lists them all
+// in `active`, in path order; their first rays are written by write_alive_rays.
 template <typename Path>
-size_t start_camera_wave(std::vector<Path> &paths, std::vector<int32_t> &active, const Camera &cam,
-                         int64_t iteration, int spp, uint64_t stream_seed, const RayBuffers &out, int threads) {
+void start_camera_wave(std::vector<Path> &paths, std::vector<int32_t> &active, const Camera &cam,
+                       int64_t iteration, int spp, uint64_t stream_seed, int threads) {
     active.resize(paths.size());
 #pragma omp parallel for schedule(static) num_threads(threads)
     for (int64_t i = 0; i < int64_t(paths.size()); ++i) {
-        start_camera_sample(paths[i], cam, i, iteration, spp, stream_seed, out, size_t(i));
+        start_camera_sample(paths[i], cam, i, iteration, spp, stream_seed);
         active[i] = int32_t(i);
     }
-    return active.size();
 }
 
 class CameraPathSteps {

@@ -7,8 +7,8 @@
 
 namespace pgi {
 
-LightPathTracer::LightPathTracer(std::shared_ptr<const Scene> scene, int max_depth, int rr_depth, uint64_t seed,
-                                 int64_t paths_per_iteration, int threads, int64_t max_records)
+LightPaths::LightPaths(std::shared_ptr<const Scene> scene, int max_depth, int rr_depth, uint64_t seed,
+                       int64_t paths_per_iteration, int threads, int64_t max_records)
     : scene_(std::move(scene)), depth_(max_depth), rr_depth_(rr_depth), seed_(seed),
       threads_(std::max(1, threads)), max_records_(max_records) {
     if (paths_per_iteration <= 0) throw std::invalid_argument("paths_per_iteration must be positive");
@@ -17,7 +17,7 @@ LightPathTracer::LightPathTracer(std::shared_ptr<const Scene> scene, int max_dep
     emission_medium_light_.assign(scene_->lights.size(), -1);
 }
 
-void LightPathTracer::set_emission_media(const std::vector<int32_t> &per_triangle,
+void LightPaths::set_emission_media(const std::vector<int32_t> &per_triangle,
                                          const std::vector<int32_t> &per_light) {
     if (per_triangle.size() != scene_->triangles.size() || per_light.size() != scene_->lights.size())
         throw std::invalid_argument("emission media: one entry per triangle and per light expected");
@@ -29,23 +29,22 @@ void LightPathTracer::set_emission_media(const std::vector<int32_t> &per_triangl
     emission_medium_light_ = per_light;
 }
 
-void LightPathTracer::check_capacity() const {
+void LightPaths::check_capacity() const {
     int64_t records = int64_t(vertices_.size() + segments_.size());
     if (max_records_ > 0 && records > max_records_)
         throw std::length_error("light paths: " + std::to_string(records) +
                                 " records exceed the configured bound of " + std::to_string(max_records_));
 }
 
-size_t LightPathTracer::begin_iteration(int64_t iteration, const RayBuffers &out) {
+void LightPaths::begin(int64_t iteration) {
     iteration_ = iteration;
     vertices_.clear();
     segments_.clear();
     active_.clear();
     const Scene &scene = *scene_;
     // max_depth 0 renders black: not even a light seen directly is in range.
-    if (!depth_.allows(0) || scene.light_selection.size() == 0 || scene.light_selection.total() <= 0) return 0;
+    if (!depth_.allows(0) || scene.light_selection.size() == 0 || scene.light_selection.total() <= 0) return;
     size_t n = paths_.size();
-    if (out.capacity < n) throw std::invalid_argument("light paths: ray buffers too small");
     slot_vertex_.resize(n);
     slot_segment_.resize(n);
     slot_has_vertex_.assign(n, 0);
@@ -62,7 +61,6 @@ size_t LightPathTracer::begin_iteration(int64_t iteration, const RayBuffers &out
     collect(n);
     active_.resize(n);
     std::iota(active_.begin(), active_.end(), 0);
-    return next_rays(out);
 }
 
 // A path from a point or spot light starts its clearance out along its direction, as
@@ -129,7 +127,7 @@ EmissionSample sample_emission(const Scene &scene, const double u[6]) {
     return s;
 }
 
-void LightPathTracer::emit(LightPathState &p, size_t slot) {
+void LightPaths::emit(LightPathState &p, size_t slot) {
     const Scene &scene = *scene_;
     double u[6];
     for (double &v : u) v = p.rng.next();
@@ -161,7 +159,7 @@ void LightPathTracer::emit(LightPathState &p, size_t slot) {
     p.alive = depth_.allows(1);
 }
 
-void LightPathTracer::scatter(const Hits &hits) {
+size_t LightPaths::shade(const Hits &hits) {
     const Scene &scene = *scene_;
     hits.expect(active_.size(), "light-path scatter");
     uint64_t lookups = 0;
@@ -215,9 +213,10 @@ void LightPathTracer::scatter(const Hits &hits) {
     }
     stats_.density_lookups += lookups;
     collect(n);
+    return 0;
 }
 
-void LightPathTracer::scatter_in_medium(LightPathState &p, size_t slot, const Vec3 &x) {
+void LightPaths::scatter_in_medium(LightPathState &p, size_t slot, const Vec3 &x) {
     const Medium &m = scene_->media[p.medium];
     ++p.depth;
     Vec3 wi = -p.dir;
@@ -231,7 +230,7 @@ void LightPathTracer::scatter_in_medium(LightPathState &p, size_t slot, const Ve
     p.alive = russian_roulette(p);
 }
 
-void LightPathTracer::scatter_on_surface(LightPathState &p, size_t slot, int tri, const Vec3 &x) {
+void LightPaths::scatter_on_surface(LightPathState &p, size_t slot, int tri, const Vec3 &x) {
     const Triangle &T = scene_->triangles[tri];
     const Material &mat = scene_->materials[T.material];
     ++p.depth;
@@ -250,7 +249,7 @@ void LightPathTracer::scatter_on_surface(LightPathState &p, size_t slot, int tri
 }
 
 // After rr_depth real events, survive_roulette on max(power) / max(emitted).
-bool LightPathTracer::russian_roulette(LightPathState &p) {
+bool LightPaths::russian_roulette(LightPathState &p) {
     if (is_black(p.power)) return false;
     if (p.depth <= rr_depth_) return true;
     return survive_roulette(p.power, max_component(p.power) * p.inv_initial, p.rng);
@@ -258,7 +257,7 @@ bool LightPathTracer::russian_roulette(LightPathState &p) {
 
 // Slot `slot`'s vertex: path p at x, arrived from wi, with its power, medium, depth and
 // specular flag as they are now; the caller adds what its kind needs (a triangle).
-LightVertex &LightPathTracer::record_vertex(size_t slot, const LightPathState &p, VertexKind kind, const Vec3 &x,
+LightVertex &LightPaths::record_vertex(size_t slot, const LightPathState &p, VertexKind kind, const Vec3 &x,
                                             const Vec3 &wi) {
     LightVertex &v = slot_vertex_[slot];
     v = LightVertex();
@@ -274,7 +273,7 @@ LightVertex &LightPathTracer::record_vertex(size_t slot, const LightPathState &p
     return v;
 }
 
-void LightPathTracer::collect(size_t slots) {
+void LightPaths::collect(size_t slots) {
     for (size_t k = 0; k < slots; ++k) {
         if (slot_has_segment_[k]) segments_.push_back(slot_segment_[k]);
         if (slot_has_vertex_[k]) vertices_.push_back(slot_vertex_[k]);
@@ -282,7 +281,7 @@ void LightPathTracer::collect(size_t slots) {
     check_capacity();
 }
 
-size_t LightPathTracer::next_rays(const RayBuffers &out) {
+size_t LightPaths::next_rays(const RayBuffers &out) {
     return write_alive_rays(active_, paths_, out, threads_);
 }
 

@@ -58,7 +58,7 @@
 #include <memory>
 #include <vector>
 
-#include "wavefront.h"
+#include "passes.h"
 
 namespace pgi {
 
@@ -119,10 +119,10 @@ struct EmissionSample {
 };
 EmissionSample sample_emission(const Scene &scene, const double u[6]);
 
-class LightPathTracer {
+class LightPaths : public SingleLane<LightPaths>, public NoShadowRays {
 public:
-    LightPathTracer(std::shared_ptr<const Scene> scene, int max_depth, int rr_depth, uint64_t seed,
-                    int64_t paths_per_iteration, int threads, int64_t max_records);
+    LightPaths(std::shared_ptr<const Scene> scene, int max_depth, int rr_depth, uint64_t seed,
+               int64_t paths_per_iteration, int threads, int64_t max_records);
 
     // Medium at each emitting triangle's front side and at each point/spot light.
     void set_emission_media(const std::vector<int32_t> &per_triangle, const std::vector<int32_t> &per_light);
@@ -134,9 +134,12 @@ public:
     const Scene &scene() const { return *scene_; }
     std::shared_ptr<const Scene> scene_ptr() const { return scene_; }
 
-    size_t begin_iteration(int64_t iteration, const RayBuffers &out);
-    void scatter(const Hits &hits);
+    // The passes (passes.h): begin emits every path, shade scatters them where their rays
+    // ended (recording vertices and segments), end has nothing left to do.
+    void begin(int64_t iteration);
     size_t next_rays(const RayBuffers &out);
+    size_t shade(const Hits &hits);
+    void end() {}
 
     const std::vector<LightVertex> &vertices() const { return vertices_; }
     const std::vector<LightSegment> &segments() const { return segments_; }

@@ -3,19 +3,22 @@
 
 namespace pgi {
 
-LightTracer::LightTracer(std::shared_ptr<const Scene> scene, uint64_t seed, int threads)
-    : scene_(std::move(scene)), seed_(seed), threads_(std::max(1, threads)),
+LightTracing::LightTracing(std::shared_ptr<const Scene> scene, std::shared_ptr<const LightPaths> light_paths,
+                           uint64_t seed, int threads)
+    : scene_(std::move(scene)), light_paths_(std::move(light_paths)), seed_(seed), threads_(std::max(1, threads)),
       film_(scene_->camera.width, scene_->camera.height) {}
 
-size_t LightTracer::connect(const LightPathTracer &paths) {
+void LightTracing::begin(int64_t iteration) {
+    const LightPaths &paths = *light_paths_;
+    if (paths.iteration() != iteration)
+        throw std::logic_error("lt: the light paths of iteration " + std::to_string(iteration) + " come first");
     const Scene &scene = *scene_;
     const Camera &cam = scene.camera;
     const std::vector<LightVertex> &verts = paths.vertices();
     const double inv_paths = 1.0 / double(paths.paths_per_iteration());
-    const uint64_t iteration = uint64_t(paths.iteration());
     splats_.assign(verts.size(), Splat());
     shadow_.open(verts.size());
-    light_paths_ += uint64_t(paths.paths_per_iteration());
+    light_paths_traced_ += uint64_t(paths.paths_per_iteration());
 #pragma omp parallel for schedule(static) num_threads(threads_)
     for (int64_t k = 0; k < int64_t(verts.size()); ++k) {
         const LightVertex &v = verts[k];
@@ -58,23 +61,22 @@ size_t LightTracer::connect(const LightPathTracer &paths) {
         r.medium = medium;
         r.receiver = k;
         r.contribution = value;
-        r.rng = Sampler(stream_key(seed_ ^ stream_tag::kConnections, iteration, uint64_t(k)));
+        r.rng = Sampler(stream_key(seed_ ^ stream_tag::kConnections, uint64_t(iteration), uint64_t(k)));
         r.live = true;
     }
-    return shadow_.live(threads_);
 }
 
-size_t LightTracer::shadow_rays(const RayBuffers &out) {
+size_t LightTracing::shadow_rays(const RayBuffers &out) {
     return shadow_.compact_and_write(out, threads_);
 }
 
-void LightTracer::resolve_shadows(const Hits &hits) {
+void LightTracing::resolve_shadows(const Hits &hits) {
     shadow_.resolve(*scene_, hits, threads_, stats_, [&](int64_t k, const RGB &value) {
         splats_[k].value += value;  // one connection per vertex: no race
     });
 }
 
-void LightTracer::end_iteration() {
+void LightTracing::end() {
     for (const Splat &s : splats_)
         if (s.pixel >= 0 && !is_black(s.value)) film_.add(s.pixel, s.value);
     film_.samples_per_pixel += 1;  // the image is the mean of the iterations' estimates

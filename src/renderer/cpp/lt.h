@@ -66,32 +66,35 @@ struct Splat {
     RGB value{0.0};
 };
 
-class LightTracer {
+class LightTracing : public SingleLane<LightTracing>, public NoExtensionRays {
 public:
-    LightTracer(std::shared_ptr<const Scene> scene, uint64_t seed, int threads);
+    LightTracing(std::shared_ptr<const Scene> scene, std::shared_ptr<const LightPaths> light_paths, uint64_t seed,
+                 int threads);
 
-    // Pass 1: one connection ray per vertex of the light paths; returns how many.
-    size_t connect(const LightPathTracer &paths);
+    // Pass 1: one connection ray per vertex of this iteration's light paths (traced first).
+    void begin(int64_t iteration);
     // Pass 2 (repeated): pending connection segments into `out`; returns their count.
+    size_t shadow_slots() const { return shadow_.opened(); }
     size_t shadow_rays(const RayBuffers &out);
     void resolve_shadows(const Hits &hits);
     // Pass 3: splats added to the film in vertex order.
-    void end_iteration();
+    void end();
 
     const Film &film() const { return film_; }
     const Scene &scene() const { return *scene_; }
     uint64_t density_lookups() const { return stats_.density_lookups; }
-    uint64_t light_paths() const { return light_paths_; }
+    uint64_t light_paths() const { return light_paths_traced_; }
 
 private:
     std::shared_ptr<const Scene> scene_;
+    std::shared_ptr<const LightPaths> light_paths_;
     uint64_t seed_;
     int threads_;
     ShadowQueue shadow_;
     std::vector<Splat> splats_;
     Film film_;
     MediumStats stats_;
-    uint64_t light_paths_ = 0;
+    uint64_t light_paths_traced_ = 0;
 };
 
 }  // namespace pgi

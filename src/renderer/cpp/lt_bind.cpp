@@ -1,4 +1,4 @@
-// Bindings of the shared light-path tracer (lightpath.h) and of the lt kernel (lt.h).
+// Bindings of the shared light paths (lightpath.h) and of the lt kernel (lt.h).
 #include <nanobind/stl/vector.h>
 
 #include "bindings.h"
@@ -78,7 +78,7 @@ nb::dict segment_arrays(const std::vector<LightSegment> &ss) {
 
 }  // namespace
 
-void bind_lt(nb::module_ &m) {
+static void bind_lt(nb::module_ &m) {
     // Probe for tests: the pixel each world point projects to through connect_to_camera
     // (-1 off the film) and the importance it receives there.
     m.def("camera_projections",
@@ -94,50 +94,23 @@ void bind_lt(nb::module_ &m) {
               }
               return std::make_tuple(to_numpy(std::move(pixel), {n}), to_numpy(std::move(importance), {n}));
           }, "scene"_a, "points"_a);
-    nb::class_<LightPathTracer>(m, "LightPathTracer")
+    bind_kernel<LightPaths>(m, "LightPaths")
         .def(nb::init<std::shared_ptr<const Scene>, int, int, uint64_t, int64_t, int, int64_t>(), "scene"_a,
              "max_depth"_a, "rr_depth"_a, "seed"_a, "paths_per_iteration"_a, "threads"_a, "max_records"_a)
-        .def("set_emission_media", &LightPathTracer::set_emission_media, "per_triangle"_a, "per_light"_a)
-        .def("set_recording", &LightPathTracer::set_recording, "vertices"_a, "segments"_a)
-        .def_prop_ro("capacity", &LightPathTracer::capacity)
-        .def_prop_ro("paths_per_iteration", &LightPathTracer::paths_per_iteration)
-        .def("begin_iteration",
-             [](LightPathTracer &lp, int64_t it, Array<float> o, Array<float> d, Array<float> t) {
-                 RayBuffers b = ray_buffers(o, d, t);
-                 check_len(b.capacity, lp.capacity(), "ray buffers");
-                 return released([&] { return lp.begin_iteration(it, b); });
-             }, "iteration"_a, "o"_a.noconvert(), "d"_a.noconvert(), "t"_a.noconvert())
-        .def("scatter",
-             [](LightPathTracer &lp, Array<float> tfar, Array<int32_t> prim, Array<float> u, Array<float> v) {
-                 Hits h = hits_of(tfar, prim, u, v);
-                 released([&] { lp.scatter(h); });
-             })
-        .def("next_rays",
-             [](LightPathTracer &lp, Array<float> o, Array<float> d, Array<float> t) {
-                 RayBuffers b = ray_buffers(o, d, t);
-                 return released([&] { return lp.next_rays(b); });
-             }, "o"_a.noconvert(), "d"_a.noconvert(), "t"_a.noconvert())
-        .def("vertices", [](const LightPathTracer &lp) { return vertex_arrays(lp.vertices()); })
-        .def("segments", [](const LightPathTracer &lp) { return segment_arrays(lp.segments()); })
-        .def_prop_ro("vertex_count", [](const LightPathTracer &lp) { return lp.vertices().size(); })
-        .def_prop_ro("segment_count", [](const LightPathTracer &lp) { return lp.segments().size(); })
-        .def_prop_ro("density_lookups", &LightPathTracer::density_lookups)
-        .def_prop_ro("paths_traced", &LightPathTracer::paths_traced);
+        .def("set_emission_media", &LightPaths::set_emission_media, "per_triangle"_a, "per_light"_a)
+        .def("set_recording", &LightPaths::set_recording, "vertices"_a, "segments"_a)
+        .def_prop_ro("paths_per_iteration", &LightPaths::paths_per_iteration)
+        .def("vertices", [](const LightPaths &lp) { return vertex_arrays(lp.vertices()); })
+        .def("segments", [](const LightPaths &lp) { return segment_arrays(lp.segments()); })
+        .def_prop_ro("vertex_count", [](const LightPaths &lp) { return lp.vertices().size(); })
+        .def_prop_ro("segment_count", [](const LightPaths &lp) { return lp.segments().size(); })
+        .def_prop_ro("paths_traced", &LightPaths::paths_traced);
 
-    nb::class_<LightTracer> lt_class(m, "LightTracer");
-    def_shadow_passes(lt_class);
-    lt_class
-        .def(nb::init<std::shared_ptr<const Scene>, uint64_t, int>(), "scene"_a, "seed"_a, "threads"_a)
-        .def("connect",
-             [](LightTracer &lt, const LightPathTracer &paths) {
-                 return released([&] { return lt.connect(paths); });
-             })
-        .def("end_iteration", &LightTracer::end_iteration, nb::call_guard<nb::gil_scoped_release>())
-        .def("image", [](const LightTracer &lt) { return film_image(lt.film()); })
-        .def_prop_ro("iterations", [](const LightTracer &lt) { return lt.film().samples_per_pixel; })
-        .def_prop_ro("nonfinite", [](const LightTracer &lt) { return lt.film().nonfinite; })
-        .def_prop_ro("density_lookups", &LightTracer::density_lookups)
-        .def_prop_ro("light_paths", &LightTracer::light_paths);
+    bind_kernel<LightTracing>(m, "LightTracing")
+        .def(nb::init<std::shared_ptr<const Scene>, std::shared_ptr<const LightPaths>, uint64_t, int>(), "scene"_a,
+             "light_paths"_a, "seed"_a, "threads"_a)
+        .def_prop_ro("light_paths", &LightTracing::light_paths);
 }
+PGI_BINDING("lt", bind_lt);
 
 }  // namespace pgi::bind

@@ -20,7 +20,7 @@ Medium &medium_at(Scene &s, int medium) {
 
 }  // namespace
 
-void bind_media(nb::module_ &m) {
+static void bind_media(nb::module_ &m) {
     m.def("configure_medium",
           [](Scene &s, int medium, Estimator estimator, double march_step) {
               Medium &md = medium_at(s, medium);
@@ -67,5 +67,7 @@ void bind_media(nb::module_ &m) {
               return probe_phase_eval(ph, wo, wi);
           }, "values"_a, "wo"_a, "wi"_a);
 }
+
+PGI_BINDING("media", bind_media);
 
 }  // namespace pgi::bind

@@ -2,7 +2,6 @@
 // kernels of each method, and probes of the sampling routines for tests.
 #include "bindings.h"
 #include "lightpath.h"
-#include "pt.h"
 #include "surface_photons.h"
 
 namespace nb = nanobind;
@@ -413,9 +412,8 @@ NB_MODULE(_core, m) {
     add_kinds(m);
     add_scene(m);
     add_sampling_probes(m);
-    bind_pt(m);
-    bind_lt(m);
-    bind_pm(m);
-    bind_media(m);
-    bind_ppb(m);
+    // Each kernel's and probe family's own file (PGI_BINDING), in the order of their names.
+    std::vector<std::pair<std::string, Binder>> all = binders();
+    std::sort(all.begin(), all.end(), [](const auto &a, const auto &b) { return a.first < b.first; });
+    for (const auto &[name, bind] : all) bind(m);
 }

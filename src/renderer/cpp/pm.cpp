@@ -38,15 +38,29 @@ private:
 
 }  // namespace
 
-PhotonGatherer::PhotonGatherer(std::shared_ptr<const Scene> scene, int max_depth, uint64_t seed,
-                               int spp_per_iteration, int threads)
-    : scene_(std::move(scene)), depth_(max_depth), seed_(seed),
+// The kernels divide by pi r^2: a radius of 0, or one so small that 1 / (pi r^2) is infinite,
+// would make every estimate without a photon 0 * inf.
+static double usable_radius(double r) {
+    if (!(r > 0 && std::isfinite(r) && std::isfinite(1 / (kPi * r * r))))
+        throw std::invalid_argument("pm: radii must be positive and finite, with 1 / (pi r^2) finite");
+    return r;
+}
+
+PhotonMapping::PhotonMapping(std::shared_ptr<const Scene> scene, std::shared_ptr<const LightPaths> light_paths,
+                             int max_depth, uint64_t seed, int spp_per_iteration, int threads, double surface_radius,
+                             double surface_alpha, double volume_radius, double volume_alpha)
+    : scene_(std::move(scene)), light_paths_(std::move(light_paths)), depth_(max_depth), seed_(seed),
       spp_per_iteration_(std::max(1, spp_per_iteration)), threads_(std::max(1, threads)),
+      surface_schedule_(usable_radius(surface_radius), surface_alpha, kDimension),
+      volume_schedule_(usable_radius(volume_radius), volume_alpha, kDimension),
       film_(scene_->camera.width, scene_->camera.height) {
     paths_.resize(size_t(film_.width) * film_.height * spp_per_iteration_);
 }
 
-void PhotonGatherer::build_maps(const LightPathTracer &paths) {
+void PhotonMapping::begin(int64_t iteration) {
+    const LightPaths &paths = *light_paths_;
+    if (paths.iteration() != iteration)
+        throw std::logic_error("pm: the light paths of iteration " + std::to_string(iteration) + " come first");
     surface_photons_.clear();
     volume_photons_.clear();
     for (const LightVertex &v : paths.vertices()) {
@@ -62,20 +76,19 @@ void PhotonGatherer::build_maps(const LightPathTracer &paths) {
     volume_tree_.build(points, threads_);
     stats_.surface_photons += surface_photons_.size();
     stats_.volume_photons += volume_photons_.size();
-}
+    // The iteration's radii (checked again: the schedule shrinks them).
+    surface_radius_ = usable_radius(surface_schedule_.radius(iteration));
+    volume_radius_ = usable_radius(volume_schedule_.radius(iteration));
 
-size_t PhotonGatherer::begin_camera(int64_t iteration, const RayBuffers &out) {
-    const Camera &cam = scene_->camera;
     active_.clear();
-    if (!depth_.allows(0)) return 0;  // Mitsuba: max_depth 0 renders black
-    if (out.capacity < paths_.size()) throw std::invalid_argument("pm: ray buffers too small");
-    return start_camera_wave(paths_, active_, cam, iteration, spp_per_iteration_, seed_ ^ stream_tag::kGatherPaths, out,
-                             threads_);
+    if (!depth_.allows(0)) return;  // Mitsuba: max_depth 0 renders black
+    start_camera_wave(paths_, active_, scene_->camera, iteration, spp_per_iteration_,
+                      seed_ ^ stream_tag::kGatherPaths, threads_);
 }
 
 // Beam radiance estimate along [0, t_hit] (Jarosz et al. 2008): every volume photon
 // of this medium whose disc crosses the segment, attenuated to the camera-path vertex.
-RGB PhotonGatherer::beam_estimate(const GatherPath &p, double t_hit, double radius, Sampler rng,
+RGB PhotonMapping::beam_estimate(const GatherPath &p, double t_hit, double radius, Sampler rng,
                                   MediumStats &ms, uint64_t &accepted) const {
     const Medium &m = scene_->media[p.medium];
     double tmax = std::isfinite(t_hit) ? t_hit + p.lead : 1e30;
@@ -95,7 +108,7 @@ RGB PhotonGatherer::beam_estimate(const GatherPath &p, double t_hit, double radi
 }
 
 // Surface density estimate at x (Jensen 1996) with a constant kernel 1 / (pi r^2).
-RGB PhotonGatherer::surface_estimate(const GatherPath &p, int tri, const Vec3 &x, double radius,
+RGB PhotonMapping::surface_estimate(const GatherPath &p, int tri, const Vec3 &x, double radius,
                                      uint64_t &accepted) const {
     RGB reflected = reflected_photon_power(*scene_, surface_tree_, surface_photons_, tri, x, -p.dir, radius,
                                            [&](const LightVertex &ph) {
@@ -106,14 +119,10 @@ RGB PhotonGatherer::surface_estimate(const GatherPath &p, int tri, const Vec3 &x
     return reflected * (inv_light_paths_ / (kPi * radius * radius));
 }
 
-void PhotonGatherer::shade(const Hits &hits, double surface_radius, double volume_radius) {
+size_t PhotonMapping::shade(const Hits &hits) {
     const Scene &scene = *scene_;
     hits.expect(active_.size(), "pm shade");
-    // The kernels divide by pi r^2: a radius of 0, or one so small that 1 / (pi r^2) is
-    // infinite, would make every estimate without a photon 0 * inf.
-    auto usable = [](double r) { return r > 0 && std::isfinite(r) && std::isfinite(1 / (kPi * r * r)); };
-    if (!(usable(surface_radius) && usable(volume_radius)))
-        throw std::invalid_argument("pm shade: radii must be positive and finite, with 1 / (pi r^2) finite");
+    const double surface_radius = surface_radius_, volume_radius = volume_radius_;
     uint64_t lookups = 0, surface_accepted = 0, volume_accepted = 0;
     const DepthLimit specular_limit = depth_.unlimited() ? DepthLimit(kMaxSpecularBounces) : depth_;
 #pragma omp parallel for schedule(dynamic, 64) num_threads(threads_) \
@@ -163,13 +172,14 @@ void PhotonGatherer::shade(const Hits &hits, double surface_radius, double volum
     medium_stats_.density_lookups += lookups;
     stats_.surface_lookups += surface_accepted;
     stats_.volume_lookups += volume_accepted;
+    return 0;
 }
 
-size_t PhotonGatherer::next_rays(const RayBuffers &out) {
+size_t PhotonMapping::next_rays(const RayBuffers &out) {
     return write_alive_rays(active_, paths_, out, threads_);
 }
 
-void PhotonGatherer::end_iteration() {
+void PhotonMapping::end() {
     add_paths_to_film(film_, paths_, spp_per_iteration_);
     active_.clear();
 }

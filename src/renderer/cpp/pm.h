@@ -8,12 +8,12 @@
 //   (sppm) Hachisuka & Jensen 2009, "Stochastic progressive photon mapping";
 //   Knaus & Zwicker 2011, "Progressive photon mapping: a probabilistic approach".
 //
-// One iteration, each step a pass:
-//   1. light paths (lightpath.h): surface photons = vertices on non-delta surfaces,
-//      volume photons = real collisions in media; `build_maps` puts each set in a
-//      kd-tree (photon_map.h).
-//   2. camera paths: `begin_camera` shoots spp_per_iteration rays per pixel (box
-//      filter); `shade` (repeated with `next_rays`) follows each through null
+// One iteration, each step a pass (passes.h):
+//   1. light paths (lightpath.h, traced first): surface photons = vertices on non-delta
+//      surfaces, volume photons = real collisions in media; `begin` puts each set in a
+//      kd-tree (photon_map.h), takes the iteration's radii from their schedules and starts
+//      spp_per_iteration camera paths per pixel (box filter);
+//   2. camera paths: `shade` (repeated with `next_rays`) follows each through null
 //      boundaries and specular surfaces (dielectric, mirror) to the first
 //      non-specular surface:
 //        - in a medium, the beam radiance estimate along the traced segment
@@ -25,17 +25,19 @@
 //        - at a diffuse surface, the density estimate (Jensen 1996, eq. 6):
 //            L += sum_photons f(w_p, w_o) power_p / (N pi r_s^2)
 //          over surface photons within r_s whose surface faces the same way.
-//   3. `end_iteration`: each path's radiance to its pixel, in path order.
+//   3. `end`: each path's radiance to its pixel, in path order.
 // A photon of depth k gathered after s specular camera bounces makes a path
 // of s + k real scattering events: it is used iff DepthLimit::allows(s + k) (Mitsuba).
-// The estimate is biased by the kernel (blur over r); pm keeps r fixed, sppm
-// shrinks it per iteration (radius_schedule.h) so the mean of the iterations
-// converges.
+// The estimate is biased by the kernel (blur over r); pm keeps r fixed (alpha = 1), sppm
+// shrinks it per iteration (radius_schedule.h) so the mean of the iterations converges.
+// Both kernels are 2D discs (the surface estimate, and the beam radiance estimate around
+// the camera ray), so both schedules have dimension 2.
 #pragma once
 
 #include <memory>
 
 #include "camera_path.h"  // camera samples and wave bookkeeping shared with pt and ppb
+#include "radius_schedule.h"
 #include "lightpath.h"
 #include "photon_map.h"
 #include "surface_photons.h"
@@ -60,23 +62,28 @@ struct PhotonGatherStats {
     uint64_t surface_lookups = 0, volume_lookups = 0;  // photons accepted by queries
 };
 
-class PhotonGatherer {
+class PhotonMapping : public SingleLane<PhotonMapping>, public NoShadowRays {
 public:
-    PhotonGatherer(std::shared_ptr<const Scene> scene, int max_depth, uint64_t seed, int spp_per_iteration,
-                   int threads);
+    static constexpr int kDimension = 2;  // of both kernels (see above)
+
+    // radius schedules: r_1 and alpha of the surface and of the volume estimate.
+    PhotonMapping(std::shared_ptr<const Scene> scene, std::shared_ptr<const LightPaths> light_paths, int max_depth,
+                  uint64_t seed, int spp_per_iteration, int threads, double surface_radius, double surface_alpha,
+                  double volume_radius, double volume_alpha);
 
     size_t capacity() const { return paths_.size(); }
-    // Pass 1: photon maps of this iteration's light paths.
-    void build_maps(const LightPathTracer &paths);
-    // Pass 2: camera rays of iteration `iteration`.
-    size_t begin_camera(int64_t iteration, const RayBuffers &out);
-    // Pass 3 (with next_rays, repeated): estimates along and at the end of each traced ray.
-    void shade(const Hits &hits, double surface_radius, double volume_radius);
+    // Pass 1: photon maps of this iteration's light paths, its radii, its camera paths.
+    void begin(int64_t iteration);
+    // Pass 2 (with next_rays, repeated): estimates along and at the end of each traced ray.
     size_t next_rays(const RayBuffers &out);
-    // Pass 4: path radiance to the film, in path order.
-    void end_iteration();
+    size_t shade(const Hits &hits);
+    // Pass 3: path radiance to the film, in path order.
+    void end();
 
+    const RadiusSchedule &surface_schedule() const { return surface_schedule_; }
+    const RadiusSchedule &volume_schedule() const { return volume_schedule_; }
     const Film &film() const { return film_; }
+    const Scene &scene() const { return *scene_; }
     const PhotonGatherStats &stats() const { return stats_; }
     uint64_t density_lookups() const { return medium_stats_.density_lookups; }
 
@@ -86,9 +93,12 @@ private:
     RGB surface_estimate(const GatherPath &p, int tri, const Vec3 &x, double radius, uint64_t &accepted) const;
 
     std::shared_ptr<const Scene> scene_;
+    std::shared_ptr<const LightPaths> light_paths_;
     DepthLimit depth_;
     uint64_t seed_;
     int spp_per_iteration_, threads_;
+    RadiusSchedule surface_schedule_, volume_schedule_;
+    double surface_radius_ = 0, volume_radius_ = 0;  // this iteration's
     std::vector<GatherPath> paths_;
     std::vector<int32_t> active_;
     // This iteration's photons.

@@ -19,7 +19,7 @@ std::vector<Vec3> points_of(Array<double> pts) {
 
 }  // namespace
 
-void bind_pm(nb::module_ &m) {
+static void bind_pm(nb::module_ &m) {
     nb::class_<PointTree>(m, "PointTree")
         .def("__init__",
              [](PointTree *t, Array<double> pts) {
@@ -57,39 +57,27 @@ void bind_pm(nb::module_ &m) {
           },
           "alpha"_a, "dimension"_a, "bias_order"_a = 2);
 
-    nb::class_<PhotonGatherer>(m, "PhotonGatherer")
-        .def(nb::init<std::shared_ptr<const Scene>, int, uint64_t, int, int>(), "scene"_a, "max_depth"_a, "seed"_a,
-             "spp_per_iteration"_a, "threads"_a)
-        .def_prop_ro("capacity", &PhotonGatherer::capacity)
-        .def("build_maps",
-             [](PhotonGatherer &g, const LightPathTracer &paths) {
-                 released([&] { g.build_maps(paths); });
-             })
-        .def("begin_camera",
-             [](PhotonGatherer &g, int64_t it, Array<float> o, Array<float> d, Array<float> t) {
-                 RayBuffers b = ray_buffers(o, d, t);
-                 return released([&] { return g.begin_camera(it, b); });
-             }, "iteration"_a, "o"_a.noconvert(), "d"_a.noconvert(), "t"_a.noconvert())
-        .def("shade",
-             [](PhotonGatherer &g, Array<float> tfar, Array<int32_t> prim, Array<float> u, Array<float> v,
-                double surface_radius, double volume_radius) {
-                 Hits h = hits_of(tfar, prim, u, v);
-                 released([&] { g.shade(h, surface_radius, volume_radius); });
-             })
-        .def("next_rays",
-             [](PhotonGatherer &g, Array<float> o, Array<float> d, Array<float> t) {
-                 RayBuffers b = ray_buffers(o, d, t);
-                 return released([&] { return g.next_rays(b); });
-             }, "o"_a.noconvert(), "d"_a.noconvert(), "t"_a.noconvert())
-        .def("end_iteration", &PhotonGatherer::end_iteration, nb::call_guard<nb::gil_scoped_release>())
-        .def("image", [](const PhotonGatherer &g) { return film_image(g.film()); })
-        .def_prop_ro("samples_per_pixel", [](const PhotonGatherer &g) { return g.film().samples_per_pixel; })
-        .def_prop_ro("nonfinite", [](const PhotonGatherer &g) { return g.film().nonfinite; })
-        .def_prop_ro("density_lookups", &PhotonGatherer::density_lookups)
-        .def_prop_ro("surface_photons", [](const PhotonGatherer &g) { return g.stats().surface_photons; })
-        .def_prop_ro("volume_photons", [](const PhotonGatherer &g) { return g.stats().volume_photons; })
-        .def_prop_ro("surface_lookups", [](const PhotonGatherer &g) { return g.stats().surface_lookups; })
-        .def_prop_ro("volume_lookups", [](const PhotonGatherer &g) { return g.stats().volume_lookups; });
+    bind_kernel<PhotonMapping>(m, "PhotonMapping")
+        .def(nb::init<std::shared_ptr<const Scene>, std::shared_ptr<const LightPaths>, int, uint64_t, int, int, double,
+                      double, double, double>(),
+             "scene"_a, "light_paths"_a, "max_depth"_a, "seed"_a, "spp_per_iteration"_a, "threads"_a,
+             "surface_radius"_a, "surface_alpha"_a, "volume_radius"_a, "volume_alpha"_a)
+        .def("surface_radius", [](const PhotonMapping &g, int64_t it) { return g.surface_schedule().radius(it); },
+             "iteration"_a)
+        .def("volume_radius", [](const PhotonMapping &g, int64_t it) { return g.volume_schedule().radius(it); },
+             "iteration"_a)
+        .def_prop_ro("kernels",
+                     [](const PhotonMapping &g) {
+                         nb::list out;  // (alpha, dimension) of each blur: surfaces, then media
+                         for (const RadiusSchedule *s : {&g.surface_schedule(), &g.volume_schedule()})
+                             out.append(nb::make_tuple(s->alpha, s->dimension));
+                         return out;
+                     })
+        .def_prop_ro("surface_photons", [](const PhotonMapping &g) { return g.stats().surface_photons; })
+        .def_prop_ro("volume_photons", [](const PhotonMapping &g) { return g.stats().volume_photons; })
+        .def_prop_ro("surface_lookups", [](const PhotonMapping &g) { return g.stats().surface_lookups; })
+        .def_prop_ro("volume_lookups", [](const PhotonMapping &g) { return g.stats().volume_lookups; });
 }
+PGI_BINDING("pm", bind_pm);
 
 }  // namespace pgi::bind

@@ -3,22 +3,28 @@
 
 namespace pgi {
 
-PhotonBeams::PhotonBeams(std::shared_ptr<const Scene> scene, int max_depth, int rr_depth, uint64_t seed,
-                         int spp_per_iteration, int threads, size_t max_beams, double radius, double alpha,
-                         int gather_diffuse_bounces)
-    : scene_(std::move(scene)), steps_(*scene_, max_depth, rr_depth), depth_(max_depth), seed_(seed),
-      spp_per_iteration_(std::max(1, spp_per_iteration)), threads_(std::max(1, threads)),
+ProgressivePhotonBeams::ProgressivePhotonBeams(std::shared_ptr<const Scene> scene,
+                                               std::shared_ptr<const LightPaths> light_paths, int max_depth,
+                                               int rr_depth, uint64_t seed, int spp_per_iteration, int threads,
+                                               size_t max_beams, double radius, double alpha,
+                                               double max_piece_length, int gather_diffuse_bounces)
+    : scene_(std::move(scene)), light_paths_(std::move(light_paths)), steps_(*scene_, max_depth, rr_depth),
+      depth_(max_depth), seed_(seed), spp_per_iteration_(std::max(1, spp_per_iteration)),
+      threads_(std::max(1, threads)), max_piece_length_(max_piece_length),
       gather_diffuse_bounces_(gather_diffuse_bounces),
       film_(scene_->camera.width, scene_->camera.height), bvh_(max_beams), schedule_(radius, alpha, 1) {
     paths_.resize(size_t(film_.width) * film_.height * spp_per_iteration_);
 }
 
-void PhotonBeams::set_surface_photons(double radius, double alpha) {
+void ProgressivePhotonBeams::set_surface_photons(double radius, double alpha) {
     surface_photons_ = radius > 0;
     if (surface_photons_) surface_schedule_ = RadiusSchedule(radius, alpha, 2);
 }
 
-void PhotonBeams::build_beams(const LightPathTracer &light, int64_t iteration, double max_piece_length) {
+void ProgressivePhotonBeams::begin(int64_t iteration) {
+    const LightPaths &light = *light_paths_;
+    if (light.iteration() != iteration)
+        throw std::logic_error("ppb: the light paths of iteration " + std::to_string(iteration) + " come first");
     if (surface_photons_) {
         // Direct light is next-event estimated: keep photons with depth >= 2.
         photons_.clear();
@@ -52,23 +58,20 @@ void PhotonBeams::build_beams(const LightPathTracer &light, int64_t iteration, d
         b.depth = s.depth;
         beams.push_back(b);
     }
-    bvh_.build(std::move(beams), radius, max_piece_length);
+    bvh_.build(std::move(beams), radius, max_piece_length_);
     stats_.beams += bvh_.beams().size();
     beam_scale_ = 1.0 / (2.0 * radius * double(light.paths_per_iteration()));
-}
 
-size_t PhotonBeams::begin_wave(int64_t iteration, const RayBuffers &out) {
-    const Camera &cam = scene_->camera;
     active_.clear();
     shadow_.clear();
-    if (!depth_.allows(0)) return 0;  // Mitsuba: max_depth 0 renders black
+    if (!depth_.allows(0)) return;  // Mitsuba: max_depth 0 renders black
     // A stream key distinct from the light paths' (which use (seed, iteration, path)).
-    return start_camera_wave(paths_, active_, cam, iteration, spp_per_iteration_, seed_ ^ stream_tag::kBeamGatherPaths, out,
-                             threads_);
+    start_camera_wave(paths_, active_, scene_->camera, iteration, spp_per_iteration_,
+                      seed_ ^ stream_tag::kBeamGatherPaths, threads_);
 }
 
 // BB1D over the camera segment [0, t_end) of path p in its medium.
-RGB PhotonBeams::gather(BeamGatherPath &p, double t_end, MediumStats &local, uint64_t &pairs) const {
+RGB ProgressivePhotonBeams::gather(BeamGatherPath &p, double t_end, MediumStats &local, uint64_t &pairs) const {
     RGB sum(0.0);
     // A beam of depth k gathered after p.depth surface events makes a path of
     // k + 1 + p.depth real events; none is in range if one of depth 0 is not.
@@ -100,7 +103,7 @@ RGB PhotonBeams::gather(BeamGatherPath &p, double t_end, MediumStats &local, uin
     return sum * beam_scale_;
 }
 
-size_t PhotonBeams::shade(const Hits &hits) {
+size_t ProgressivePhotonBeams::shade(const Hits &hits) {
     const Scene &scene = *scene_;
     hits.expect(active_.size(), "ppb shade");
     uint64_t lookups = 0, pairs = 0;
@@ -150,7 +153,7 @@ size_t PhotonBeams::shade(const Hits &hits) {
 
 // Radiance leaving diffuse triangle `tri` at x towards -p.dir from the photons
 // within the surface radius; p.depth already counts the event at x.
-RGB PhotonBeams::gather_photons(const BeamGatherPath &p, int tri, const Vec3 &x) const {
+RGB ProgressivePhotonBeams::gather_photons(const BeamGatherPath &p, int tri, const Vec3 &x) const {
     // The photon's vertex is x itself: v.depth + (p.depth - 1) events in all.
     RGB reflected = reflected_photon_power(*scene_, photon_tree_, photons_, tri, x, -p.dir, photon_radius_,
                                            [&](const LightVertex &v) {
@@ -159,7 +162,7 @@ RGB PhotonBeams::gather_photons(const BeamGatherPath &p, int tri, const Vec3 &x)
     return reflected * photon_scale_;
 }
 
-void PhotonBeams::scatter_on_surface(BeamGatherPath &p, size_t slot, int tri, const Vec3 &x) {
+void ProgressivePhotonBeams::scatter_on_surface(BeamGatherPath &p, size_t slot, int tri, const Vec3 &x) {
     const Triangle &T = scene_->triangles[tri];
     const Material &mat = scene_->materials[T.material];
     if (!steps_.count_event(p)) return;
@@ -181,15 +184,15 @@ void PhotonBeams::scatter_on_surface(BeamGatherPath &p, size_t slot, int tri, co
     steps_.continue_by_bsdf(p, tri, x);
 }
 
-void PhotonBeams::resolve_shadows(const Hits &hits) {
+void ProgressivePhotonBeams::resolve_shadows(const Hits &hits) {
     shadow_.resolve(*scene_, hits, threads_, medium_stats_, [&](int64_t path, const RGB &value) {
         paths_[path].radiance += value;  // one shadow ray per path at a time: no race
     });
 }
 
-size_t PhotonBeams::next_rays(const RayBuffers &out) { return write_alive_rays(active_, paths_, out, threads_); }
+size_t ProgressivePhotonBeams::next_rays(const RayBuffers &out) { return write_alive_rays(active_, paths_, out, threads_); }
 
-void PhotonBeams::end_wave() {
+void ProgressivePhotonBeams::end() {
     add_paths_to_film(film_, paths_, spp_per_iteration_);
     active_.clear();
     stats_.density_lookups += medium_stats_.density_lookups;

@@ -66,19 +66,23 @@ struct BeamStats {
     uint64_t density_lookups = 0;
 };
 
-class PhotonBeams {
+class ProgressivePhotonBeams : public SingleLane<ProgressivePhotonBeams> {
 public:
-    // radius: r_1 of the schedule r_i = r_1 i^(alpha - 1) (Knaus & Zwicker 2011, d = 1).
-    PhotonBeams(std::shared_ptr<const Scene> scene, int max_depth, int rr_depth, uint64_t seed,
-                int spp_per_iteration, int threads, size_t max_beams, double radius, double alpha,
-                int gather_diffuse_bounces);
+    // radius: r_1 of the schedule r_i = r_1 i^(alpha - 1) (Knaus & Zwicker 2011, d = 1);
+    // max_piece_length: the longest piece of a beam in the BVH (beams.h).
+    ProgressivePhotonBeams(std::shared_ptr<const Scene> scene, std::shared_ptr<const LightPaths> light_paths,
+                           int max_depth, int rr_depth, uint64_t seed, int spp_per_iteration, int threads,
+                           size_t max_beams, double radius, double alpha, double max_piece_length,
+                           int gather_diffuse_bounces);
     // Surface photons at the first diffuse surface (radius r_1 of a d = 2 schedule);
     // off (radius 0) leaves surfaces to path tracing.
     void set_surface_photons(double radius, double alpha);
 
     size_t capacity() const { return paths_.size(); }
-    // Pass 1: the beams of this iteration's light paths, with the iteration's radius.
-    void build_beams(const LightPathTracer &light, int64_t iteration, double max_piece_length);
+    size_t shadow_slots() const { return shadow_.opened(); }
+    // Pass 1: the beams (and surface photons) of this iteration's light paths, traced first,
+    // with the iteration's radii; camera paths started.
+    void begin(int64_t iteration);
     double radius(int64_t iteration) const { return schedule_.radius(iteration); }
     // The radius schedule of each blur: the beams' (1D), then the surface photons' (2D) if any.
     std::vector<RadiusSchedule> schedules() const {
@@ -88,20 +92,21 @@ public:
     double surface_radius(int64_t iteration) const {
         return surface_photons_ ? surface_schedule_.radius(iteration) : 0.0;
     }
-    // Pass 2: camera rays; returns the count.
-    size_t begin_wave(int64_t iteration, const RayBuffers &out);
-    // Pass 3: gather beams along each traced segment, then the surface (emission,
-    // NEE, BSDF sampling). Returns the number of queued shadow rays.
+    // Pass 2 (with next_rays and the shadow passes, repeated): gather beams along each traced
+    // segment, then the surface (emission, NEE, photons or BSDF sampling). Returns the number
+    // of queued shadow rays.
+    size_t next_rays(const RayBuffers &out);
     size_t shade(const Hits &hits);
     size_t shadow_rays(const RayBuffers &out) { return shadow_.compact_and_write(out, threads_); }
     void resolve_shadows(const Hits &hits);
-    size_t next_rays(const RayBuffers &out);
-    void end_wave();
+    // Pass 3: path radiance to the film, in path order.
+    void end();
 
     const Film &film() const { return film_; }
     const Scene &scene() const { return *scene_; }
     const BeamBvh &bvh() const { return bvh_; }
     const BeamStats &stats() const { return stats_; }
+    uint64_t density_lookups() const { return stats_.density_lookups; }
 
 private:
     RGB gather(BeamGatherPath &p, double t_end, MediumStats &local, uint64_t &pairs) const;
@@ -109,10 +114,12 @@ private:
     RGB gather_photons(const BeamGatherPath &p, int tri, const Vec3 &x) const;
 
     std::shared_ptr<const Scene> scene_;
+    std::shared_ptr<const LightPaths> light_paths_;
     CameraPathSteps steps_;
     DepthLimit depth_;
     uint64_t seed_;
     int spp_per_iteration_, threads_;
+    double max_piece_length_;
     int gather_diffuse_bounces_;
     std::vector<BeamGatherPath> paths_;
     std::vector<int32_t> active_;

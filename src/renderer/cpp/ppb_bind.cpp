@@ -27,7 +27,7 @@ std::vector<Beam> beams_of(Array<double> origins, Array<double> dirs, Array<doub
 
 }  // namespace
 
-void bind_ppb(nb::module_ &m) {
+static void bind_ppb(nb::module_ &m) {
     nb::class_<BeamBvh>(m, "BeamBvh")
         .def(nb::init<size_t>(), "max_beams"_a)
         .def(
@@ -71,55 +71,27 @@ void bind_ppb(nb::module_ &m) {
         .def_prop_ro("piece_length", &BeamBvh::piece_length)
         .def_prop_ro("truncated", &BeamBvh::truncated);
 
-    nb::class_<PhotonBeams> beams_class(m, "PhotonBeams");
-    def_shadow_passes(beams_class);
-    beams_class
-        .def(nb::init<std::shared_ptr<const Scene>, int, int, uint64_t, int, int, size_t, double, double, int>(),
-             "scene"_a, "max_depth"_a, "rr_depth"_a, "seed"_a, "spp_per_iteration"_a, "threads"_a, "max_beams"_a,
-             "radius"_a, "alpha"_a, "gather_diffuse_bounces"_a)
-        .def("radius", &PhotonBeams::radius, "iteration"_a)
-        .def("surface_radius", &PhotonBeams::surface_radius, "iteration"_a)
-        .def("set_surface_photons", &PhotonBeams::set_surface_photons, "radius"_a, "alpha"_a)
+    bind_kernel<ProgressivePhotonBeams>(m, "ProgressivePhotonBeams")
+        .def(nb::init<std::shared_ptr<const Scene>, std::shared_ptr<const LightPaths>, int, int, uint64_t, int, int,
+                      size_t, double, double, double, int>(),
+             "scene"_a, "light_paths"_a, "max_depth"_a, "rr_depth"_a, "seed"_a, "spp_per_iteration"_a, "threads"_a,
+             "max_beams"_a, "radius"_a, "alpha"_a, "max_piece_length"_a, "gather_diffuse_bounces"_a)
+        .def("radius", &ProgressivePhotonBeams::radius, "iteration"_a)
+        .def("surface_radius", &ProgressivePhotonBeams::surface_radius, "iteration"_a)
+        .def("set_surface_photons", &ProgressivePhotonBeams::set_surface_photons, "radius"_a, "alpha"_a)
         .def_prop_ro("kernels",
-                     [](const PhotonBeams &pb) {
+                     [](const ProgressivePhotonBeams &pb) {
                          nb::list out;  // (alpha, dimension) of each blur, as the schedules run them
                          for (const RadiusSchedule &s : pb.schedules()) out.append(nb::make_tuple(s.alpha, s.dimension));
                          return out;
                      })
-        .def_prop_ro("photons_stored", [](const PhotonBeams &pb) { return pb.stats().photons; })
-        .def_prop_ro("capacity", &PhotonBeams::capacity)
-        .def(
-            "build_beams",
-            [](PhotonBeams &pb, const LightPathTracer &light, int64_t iteration, double max_piece_length) {
-                released([&] { pb.build_beams(light, iteration, max_piece_length); });
-            },
-            "light_paths"_a, "iteration"_a, "max_piece_length"_a)
-        .def("begin_wave",
-             [](PhotonBeams &pb, int64_t it, Array<float> o, Array<float> d, Array<float> t) {
-                 RayBuffers b = ray_buffers(o, d, t);
-                 check_len(b.capacity, pb.capacity(), "ray buffers");
-                 return released([&] { return pb.begin_wave(it, b); });
-             }, "iteration"_a, "o"_a.noconvert(), "d"_a.noconvert(), "t"_a.noconvert())
-        .def("shade",
-             [](PhotonBeams &pb, Array<float> tfar, Array<int32_t> prim, Array<float> u, Array<float> v) {
-                 Hits h = hits_of(tfar, prim, u, v);
-                 return released([&] { return pb.shade(h); });
-             })
-        .def("next_rays",
-             [](PhotonBeams &pb, Array<float> o, Array<float> d, Array<float> t) {
-                 RayBuffers b = ray_buffers(o, d, t);
-                 return released([&] { return pb.next_rays(b); });
-             }, "o"_a.noconvert(), "d"_a.noconvert(), "t"_a.noconvert())
-        .def("end_wave", &PhotonBeams::end_wave, nb::call_guard<nb::gil_scoped_release>())
-        .def("image", [](const PhotonBeams &pb) { return film_image(pb.film()); })
-        .def_prop_ro("samples_per_pixel", [](const PhotonBeams &pb) { return pb.film().samples_per_pixel; })
-        .def_prop_ro("nonfinite", [](const PhotonBeams &pb) { return pb.film().nonfinite; })
-        .def_prop_ro("beams_stored", [](const PhotonBeams &pb) { return pb.stats().beams; })
-        .def_prop_ro("beams_truncated", [](const PhotonBeams &pb) { return pb.bvh().truncated(); })
-        .def_prop_ro("beams_escaped", [](const PhotonBeams &pb) { return pb.bvh().escaped(); })
-        .def_prop_ro("beam_pairs", [](const PhotonBeams &pb) { return pb.stats().beam_pairs; })
-        .def_prop_ro("density_lookups", [](const PhotonBeams &pb) { return pb.stats().density_lookups; })
-        .def_prop_ro("pieces", [](const PhotonBeams &pb) { return pb.bvh().piece_count(); });
+        .def_prop_ro("photons_stored", [](const ProgressivePhotonBeams &pb) { return pb.stats().photons; })
+        .def_prop_ro("beams_stored", [](const ProgressivePhotonBeams &pb) { return pb.stats().beams; })
+        .def_prop_ro("beams_truncated", [](const ProgressivePhotonBeams &pb) { return pb.bvh().truncated(); })
+        .def_prop_ro("beams_escaped", [](const ProgressivePhotonBeams &pb) { return pb.bvh().escaped(); })
+        .def_prop_ro("beam_pairs", [](const ProgressivePhotonBeams &pb) { return pb.stats().beam_pairs; })
+        .def_prop_ro("pieces", [](const ProgressivePhotonBeams &pb) { return pb.bvh().piece_count(); });
 }
+PGI_BINDING("ppb", bind_ppb);
 
 }  // namespace pgi::bind

@@ -21,16 +21,20 @@
 #include <memory>
 
 #include "camera_path.h"
+#include "passes.h"
 
 namespace pgi {
 
-class PathTracer;
+class PathTracing;
 
-// One lane: its slots of paths in flight and its shadow-ray queue. Its passes follow
-// the camera-path protocol (renderer/passes.py) and must be called from one thread.
-class PathTracerLane {
+// One lane: its slots of paths in flight and its shadow-ray queue. Its passes follow the
+// iteration protocol (passes.h) and must be called from one thread.
+class PathTracingLane {
 public:
-    PathTracerLane(PathTracer &owner, size_t slots);
+    PathTracingLane(PathTracing &owner, size_t slots);
+
+    size_t capacity() const { return slots_.size(); }
+    size_t shadow_slots() const { return slots_.size(); }
 
     // Retires the paths that ended (their radiance to the wave), gives their slots the
     // wave's next paths, and writes the rays of the paths in flight; returns their count.
@@ -45,10 +49,10 @@ public:
     const Scene &scene() const;
 
 private:
-    friend class PathTracer;
+    friend class PathTracing;
     void reset();  // a new wave: every slot empty
 
-    PathTracer &owner_;
+    PathTracing &owner_;
     std::vector<CameraPath> slots_;
     std::vector<int64_t> path_of_slot_;  // the wave's path index in each slot, -1 if none
     std::vector<int32_t> active_;        // slots in flight, in the order of the ray batch
@@ -57,24 +61,26 @@ private:
     int64_t claimed_ = 0, claimed_end_ = 0;  // paths this lane claimed and has not started
 };
 
-class PathTracer {
+class PathTracing {
 public:
-    PathTracer(std::shared_ptr<const Scene> scene, int max_depth, int rr_depth, uint64_t seed, int spp_per_wave,
-               int lanes, int slots_per_lane);
+    using Lane = PathTracingLane;
+    PathTracing(std::shared_ptr<const Scene> scene, int max_depth, int rr_depth, uint64_t seed, int spp_per_wave,
+                int lanes, int slots_per_lane);
 
     int lanes() const { return int(lanes_.size()); }
-    PathTracerLane &lane(int i);
+    PathTracingLane &lane(int i);
     // Pass 1: a new wave (iteration `iteration`); the lanes then trace it.
-    void begin_wave(int64_t iteration);
+    void begin(int64_t iteration);
     // Last pass: add the wave's paths to the film, in path order.
-    void end_wave();
+    void end();
+    const Scene &scene() const { return *scene_; }
 
     const Film &film() const { return film_; }
     uint64_t density_lookups() const { return stats_.density_lookups; }
     uint64_t media_segments() const { return stats_.segments; }
 
 private:
-    friend class PathTracerLane;
+    friend class PathTracingLane;
     // Claims up to `count` of the wave's paths not started yet: [first, first + n).
     int64_t claim(int64_t count, int64_t &n);
 
@@ -86,7 +92,7 @@ private:
     int64_t wave_paths_ = 0, iteration_ = 0;
     std::atomic<int64_t> next_path_{0};
     std::vector<RGB> radiance_;  // each path of the wave, stored when it ends
-    std::vector<std::unique_ptr<PathTracerLane>> lanes_;
+    std::vector<std::unique_ptr<PathTracingLane>> lanes_;
     Film film_;
     MediumStats stats_;
 };

@@ -195,6 +195,7 @@ size_t compact_in_order(std::vector<int32_t> &items, int threads, Keep &&keep, E
 template <typename Path>
 size_t write_alive_rays(std::vector<int32_t> &active, const std::vector<Path> &paths, const RayBuffers &out,
                         int threads) {
+    if (out.capacity < active.size()) throw std::invalid_argument("next_rays: ray buffers too small");
     return compact_in_order(
         active, threads, [&](int32_t i) { return paths[i].alive; },
         [&](int64_t k, int32_t i) { out.put(size_t(k), paths[i].pos, paths[i].dir, kInf); });
@@ -215,6 +216,7 @@ public:
         listed_ = false;
     }
     void clear() { open(0); }
+    size_t opened() const { return opened_; }  // the slots a kernel opened (its shadow_slots)
     ShadowRay &operator[](size_t k) { return slots_[k]; }
     // Live rays: among the opened slots before the first trace, else among those travelling.
     size_t live(int threads = 1) const {

@@ -12,7 +12,6 @@ import sys
 
 import numpy as np
 
-from .. import _core
 from ..engine import NativeScene
 from ..errors import PgiError
 from ..scene.model import PointLight, Scene, SpotLight
@@ -323,55 +322,3 @@ def warn_about_peaked_phase_functions(scene: Scene) -> None:
                 "stays right)",
                 file=sys.stderr,
             )
-
-
-class LightPaths:
-    """N light paths per iteration, traced pass by pass (see cpp/lightpath.h)."""
-
-    def __init__(
-        self,
-        native: NativeScene,
-        tracer: EmbreeTracer,
-        scene: Scene,
-        *,
-        seed: int,
-        threads: int,
-        paths: int,
-        paths_param: str,
-        max_records: int,
-        vertices: bool = True,
-        segments: bool = True,
-    ) -> None:
-        warn_about_peaked_phase_functions(scene)
-        self.tracer = tracer
-        self.kernel = _core.LightPathTracer(
-            native.core,
-            scene.integrator.max_depth,
-            scene.integrator.rr_depth,
-            seed,
-            paths,
-            threads,
-            max_records,
-        )
-        self.kernel.set_recording(vertices, segments)
-        per_triangle, per_light = emission_media(native, scene, seed)
-        self.kernel.set_emission_media(per_triangle.tolist(), per_light.tolist())
-        self.rays = RayBatch(paths)
-        self.paths = paths
-        self.paths_param = paths_param  # the method parameter that sets `paths`, for errors
-
-    def trace(self, iteration: int) -> None:
-        """Emit, then trace and scatter until every path of this iteration has ended.
-
-        Raises PgiError when the records exceed ``max_records`` (the memory bound).
-        """
-        kernel, rays = self.kernel, self.rays
-        try:
-            active = kernel.begin_iteration(iteration, *rays.buffers)
-            while active:
-                kernel.scatter(*self.tracer.intersect(rays, active))
-                active = kernel.next_rays(*rays.buffers)
-        except ValueError as e:
-            raise PgiError(
-                f"{e} (lower method.{self.paths_param} or raise method.max_records)"
-            ) from e

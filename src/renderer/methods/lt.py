@@ -11,15 +11,9 @@ and are missing: lt sees glass and mirrors as black.
 
 from __future__ import annotations
 
-import numpy as np
-
 from .. import _core
-from ..engine import build_native_scene
 from ..errors import PgiError
-from ..passes import resolve_shadow_rays
-from ..scene.model import Scene
-from ..tracer import EmbreeTracer, RayBatch
-from .lightpath import LightPaths
+from .base import NativeMethod
 from .params import MethodParams, budget_divisor
 
 _DEFAULT_PATHS = 1 << 16
@@ -36,68 +30,40 @@ def light_paths_for(pixels: int, spp_budget: int | None) -> int:
     return pixels * budget_divisor(max(1, _DEFAULT_PATHS // pixels), spp_budget)
 
 
-class LightTracing:
+class LightTracing(NativeMethod):
     id = "lt"
     parameters = frozenset({"light_paths", "max_records"})
 
-    def __init__(
-        self, scene: Scene, *, seed: int, threads: int, params: dict, spp_budget: int | None = None
-    ) -> None:
-        p = MethodParams(self.id, params, self.parameters)
-        pixels = scene.film.width * scene.film.height
-        paths = p.integer("light_paths", light_paths_for(pixels, spp_budget), lo=1)
-        if spp_budget and (spp_budget * pixels) % paths:
+    def setup(self, p: MethodParams) -> None:
+        film, budget = self.scene.film, self.spp_budget
+        self.pixels = film.width * film.height
+        paths = p.integer("light_paths", light_paths_for(self.pixels, budget), lo=1)
+        if budget and (budget * self.pixels) % paths:
             # lt's spp counts light paths per pixel: the budget must be whole iterations.
             raise PgiError(
                 f"method lt: light_paths {paths} must divide --spp x pixels "
-                f"({spp_budget} x {pixels})"
+                f"({budget} x {self.pixels})"
             )
         # With an spp budget the default batch is a whole number of paths per pixel: at least
         # the film's size, which can be lowered instead.
-        film = " or the film's size" if spp_budget and "light_paths" not in params else ""
-        p.light_paths_fit_in_memory("light_paths", paths, f"method.light_paths{film}")
+        film_remedy = " or the film's size" if budget and "light_paths" not in p.params else ""
+        p.light_paths_fit_in_memory("light_paths", paths, f"method.light_paths{film_remedy}")
         max_records = p.integer("max_records", _DEFAULT_MAX_RECORDS, lo=1)
-        self.method_params = p.used
-        self.native = build_native_scene(scene)
-        self.tracer = EmbreeTracer(self.native.triangles, threads)
-        self.light_paths = LightPaths(
-            self.native,
-            self.tracer,
-            scene,
-            seed=seed,
-            threads=threads,
-            paths=paths,
-            paths_param="light_paths",
-            max_records=max_records,
-            segments=False,
+        self.light_paths = self.light_paths_wavefront(
+            paths, "light_paths", max_records, segments=False
         )
-        self.kernel = _core.LightTracer(self.native.core, seed, threads)
-        self.connections = RayBatch(paths)
-        self.pixels = pixels
-        self.iterations = 0
+        self.connections = self.wavefront(
+            _core.LightTracing(self.native.core, self.light_paths.kernel, self.seed, self.threads)
+        )
 
-    def _ensure_capacity(self, n: int) -> None:
-        if n > len(self.connections.tmax):
-            self.connections = RayBatch(max(n, 2 * len(self.connections.tmax)))
-
-    def run_iteration(self, iteration: int) -> None:
+    def run_passes(self, iteration: int) -> None:
         """Trace light paths; connect their vertices to the camera; splat in vertex order."""
-        self.light_paths.trace(iteration)
-        kernel = self.kernel
-        queued = kernel.connect(self.light_paths.kernel)
-        self._ensure_capacity(queued)
-        if queued:
-            resolve_shadow_rays(kernel, self.tracer, self.connections)
-        kernel.end_iteration()
-        self.iterations += 1
+        self.light_paths.run(iteration)
+        self.connections.run(iteration)
 
-    def image(self) -> np.ndarray:
-        return self.kernel.image()
-
-    def stats(self) -> dict:
-        light_paths = int(self.kernel.light_paths)
+    def method_stats(self) -> dict:
+        light_paths = int(self.connections.kernel.light_paths)
         return {
-            "iterations": self.iterations,
             # Light paths per pixel: lt's equivalent of samples per pixel (a fraction when
             # fewer paths than pixels were traced; it read 0).
             "spp": light_paths // self.pixels
@@ -105,8 +71,4 @@ class LightTracing:
             else light_paths / self.pixels,
             "light_paths": light_paths,
             "light_paths_per_iteration": self.light_paths.paths,
-            "rays": int(self.tracer.rays_traced),
-            "nonfinite": int(self.kernel.nonfinite),
-            "density_lookups": int(self.kernel.density_lookups)
-            + int(self.light_paths.kernel.density_lookups),
         }

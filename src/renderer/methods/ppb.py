@@ -26,14 +26,8 @@ The estimate is consistent: its bias shrinks with the radius, its variance grows
 
 from __future__ import annotations
 
-import numpy as np
-
 from .. import _core
-from ..engine import build_native_scene
-from ..passes import trace_camera_wave
-from ..scene.model import Scene
-from ..tracer import EmbreeTracer, RayBatch
-from .lightpath import LightPaths
+from .base import NativeMethod
 from .params import MAX_RADIUS_FRACTION, MIN_RADIUS_FRACTION, MethodParams
 from .schedules import expected_mse_slopes
 
@@ -58,7 +52,7 @@ DEFAULT_SURFACE_ALPHA = 2 / 3
 DEFAULT_GATHER_BOUNCES = 0
 
 
-class ProgressivePhotonBeams:
+class ProgressivePhotonBeams(NativeMethod):
     id = "ppb"
     parameters = frozenset(
         {
@@ -75,14 +69,11 @@ class ProgressivePhotonBeams:
         }
     )
 
-    def __init__(
-        self, scene: Scene, *, seed: int, threads: int, params: dict, spp_budget: int | None = None
-    ) -> None:
-        p = MethodParams(self.id, params, self.parameters)
+    def setup(self, p: MethodParams) -> None:
         light_paths = p.integer("light_paths", DEFAULT_LIGHT_PATHS, lo=1)
-        spp = p.spp_per_iteration("spp_per_iteration", 1, spp_budget)
+        spp = p.spp_per_iteration("spp_per_iteration", 1, self.spp_budget)
         p.light_paths_fit_in_memory("light_paths", light_paths)
-        p.camera_paths_fit_in_memory("spp_per_iteration", spp, scene.film)
+        p.camera_paths_fit_in_memory("spp_per_iteration", spp, self.scene.film)
         alpha = p.number("alpha", DEFAULT_ALPHA, lo=0, hi=1, lo_open=True)
         radius = p.number("radius", DEFAULT_RADIUS, lo=MIN_RADIUS_FRACTION, hi=MAX_RADIUS_FRACTION)
         piece = p.number("piece_length", DEFAULT_PIECE_LENGTH, lo=0, lo_open=True)
@@ -98,77 +89,57 @@ class ProgressivePhotonBeams:
         surface_alpha = p.number("surface_alpha", DEFAULT_SURFACE_ALPHA, lo=0, hi=1, lo_open=True)
         p.refuse_unused("gather_bounces", surface_radius == 0, "unless surface_radius=0")
         p.refuse_unused("surface_alpha", surface_radius > 0, "with surface_radius=0")
-        self.method_params = p.used
-        self.native = build_native_scene(scene)
-        self.tracer = EmbreeTracer(self.native.triangles, threads)
         size = self.native.core.scene_radius
-        self.light_paths = LightPaths(
-            self.native,
-            self.tracer,
-            scene,
-            seed=seed,
-            threads=threads,
-            paths=light_paths,
-            paths_param="light_paths",
-            max_records=max_records,
-            vertices=surface_radius > 0,
+        self.light_paths = self.light_paths_wavefront(
+            light_paths, "light_paths", max_records, vertices=surface_radius > 0
         )
-        self.kernel = _core.PhotonBeams(
+        integrator = self.scene.integrator
+        kernel = _core.ProgressivePhotonBeams(
             self.native.core,
-            scene.integrator.max_depth,
-            scene.integrator.rr_depth,
-            seed,
+            self.light_paths.kernel,
+            integrator.max_depth,
+            integrator.rr_depth,
+            self.seed,
             spp,
-            threads,
+            self.threads,
             max_beams,
             radius * size,
             alpha,
+            piece * size,
             gather_bounces,
         )
-        self.kernel.set_surface_photons(surface_radius * size, surface_alpha)
-        self.piece_length = piece * size
-        self.paths = RayBatch(self.kernel.capacity)
-        self.shadows = RayBatch(self.kernel.capacity)
+        kernel.set_surface_photons(surface_radius * size, surface_alpha)
+        self.camera_paths = self.wavefront(kernel)
         self.spp_per_iteration = spp
-        self.iterations = 0
         self.alpha, self.surface_alpha = alpha, surface_alpha
         # (alpha, dimension) of each blur, from the kernel's own schedules: 1D beams; 2D surface
         # photons unless surfaces are path-traced
-        self.kernels = [tuple(k) for k in self.kernel.kernels]
+        self.kernels = [tuple(k) for k in kernel.kernels]
 
-    def run_iteration(self, iteration: int) -> None:
-        # Passes 1-2: light paths, then their beams in a BVH with this iteration's radius.
-        self.light_paths.trace(iteration)
-        self.kernel.build_beams(self.light_paths.kernel, iteration, self.piece_length)
-        # Pass 3: camera paths gather beams along media and path-trace surfaces.
-        trace_camera_wave(self.kernel, self.tracer, self.paths, self.shadows, iteration)
-        self.iterations += 1
+    def run_passes(self, iteration: int) -> None:
+        # Light paths; then their beams in a BVH with this iteration's radius, and camera paths
+        # that gather them along media and path-trace surfaces.
+        self.light_paths.run(iteration)
+        self.camera_paths.run(iteration)
 
-    def image(self) -> np.ndarray:
-        return self.kernel.image()
-
-    def stats(self) -> dict:
+    def method_stats(self) -> dict:
+        kernel, last = self.camera_paths.kernel, max(self.iterations - 1, 0)
         return {
-            "iterations": self.iterations,
-            "spp": int(self.kernel.samples_per_pixel),
+            "spp": int(kernel.samples_per_pixel),
             "spp_per_iteration": self.spp_per_iteration,
             "light_paths_per_iteration": self.light_paths.paths,
             # the last iteration's radii in world units (the parameters are relative)
-            "beam_radius_world": float(self.kernel.radius(max(self.iterations - 1, 0))),
-            "surface_radius_world": float(self.kernel.surface_radius(max(self.iterations - 1, 0))),
+            "beam_radius_world": float(kernel.radius(last)),
+            "surface_radius_world": float(kernel.surface_radius(last)),
             "alpha": self.alpha,
             "surface_alpha": self.surface_alpha,
             # alpha = 1 keeps a radius fixed: the image converges to a blurred one
             "consistent": all(a < 1 for a, _ in self.kernels),
             **expected_mse_slopes(self.kernels),
-            "beams": int(self.kernel.beams_stored),
-            "surface_photons": int(self.kernel.photons_stored),
-            "beams_truncated": int(self.kernel.beams_truncated),
+            "beams": int(kernel.beams_stored),
+            "surface_photons": int(kernel.photons_stored),
+            "beams_truncated": int(kernel.beams_truncated),
             # light paths that escaped inside an unbounded medium: their flux is missing
-            "beams_escaped": int(self.kernel.beams_escaped),
-            "beam_pairs": int(self.kernel.beam_pairs),
-            "rays": int(self.tracer.rays_traced),
-            "nonfinite": int(self.kernel.nonfinite),
-            "density_lookups": int(self.kernel.density_lookups)
-            + int(self.light_paths.kernel.density_lookups),
+            "beams_escaped": int(kernel.beams_escaped),
+            "beam_pairs": int(kernel.beam_pairs),
         }

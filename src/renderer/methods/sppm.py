@@ -14,16 +14,11 @@ well. With the default alpha = 2/3 = 4 / (d + 4) the MSE falls as n^(-2/3) at be
 
 from __future__ import annotations
 
-from .. import _core
-from ..scene.model import Scene
 from .params import MethodParams
 from .pm import PhotonMapping
 from .schedules import expected_mse_slopes
 
 DEFAULT_ALPHA = 2.0 / 3.0
-# Blur dimensions of the two estimators (see the module docstring).
-SURFACE_DIMENSION = 2
-VOLUME_DIMENSION = 2
 # sppm starts wider than pm: the radius shrinks with the iterations.
 DEFAULT_INITIAL_RADIUS_SCALE = 0.04
 
@@ -31,38 +26,22 @@ DEFAULT_INITIAL_RADIUS_SCALE = 0.04
 class StochasticProgressivePhotonMapping(PhotonMapping):
     id = "sppm"
     parameters = PhotonMapping.parameters | {"alpha", "volume_alpha"}
+    default_radius_scale = DEFAULT_INITIAL_RADIUS_SCALE
 
-    def __init__(
-        self, scene: Scene, *, seed: int, threads: int, params: dict, spp_budget: int | None = None
-    ) -> None:
-        p = MethodParams(self.id, params, self.parameters)
+    def read_alphas(self, p: MethodParams) -> tuple[float, float]:
+        """Knaus-Zwicker alphas of the surface and volume schedules."""
         alpha = p.number("alpha", DEFAULT_ALPHA, lo=0, hi=1, lo_open=True, hi_open=True)
         volume_alpha = p.number("volume_alpha", alpha, lo=0, hi=1, lo_open=True, hi_open=True)
-        params = {k: v for k, v in params.items() if k not in ("alpha", "volume_alpha")}
-        if "radius" not in params or "volume_radius" not in params:
-            params.setdefault("radius_scale", DEFAULT_INITIAL_RADIUS_SCALE)
-        super().__init__(scene, seed=seed, threads=threads, params=params, spp_budget=spp_budget)
-        self.method_params = {**self.method_params, **p.used}
-        self.alpha, self.volume_alpha = alpha, volume_alpha
+        return alpha, volume_alpha
 
-    def radii(self, iteration: int) -> tuple[float, float]:
-        """Knaus-Zwicker radii of iteration `iteration` (0-based)."""
-        surface = _core.radius_schedule(self.radius, self.alpha, SURFACE_DIMENSION, iteration + 1)
-        volume = _core.radius_schedule(
-            self.volume_radius, self.volume_alpha, VOLUME_DIMENSION, iteration + 1
-        )
-        return float(surface[-1]), float(volume[-1])
-
-    def stats(self) -> dict:
-        s = super().stats()
+    def method_stats(self) -> dict:
+        s = super().method_stats()
         s.update(
             alpha=self.alpha,
             volume_alpha=self.volume_alpha,
             initial_surface_radius=self.radius,
             initial_volume_radius=self.volume_radius,
             consistent=True,
-            **expected_mse_slopes(
-                [(self.alpha, SURFACE_DIMENSION), (self.volume_alpha, VOLUME_DIMENSION)]
-            ),
+            **expected_mse_slopes([tuple(k) for k in self.camera_paths.kernel.kernels]),
         )
         return s
