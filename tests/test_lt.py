@@ -304,7 +304,7 @@ def test_emission_vertices_carry_the_emitted_flux():
     assert emission.sum() == lp.paths  # one per path: the scene has one area light
     area = 0.5 * 0.4
     expected = np.array([18.4, 14.0, 6.75]) * area
-    assert np.allclose(v["power"][emission].mean(axis=0), expected, rtol=1e-9)
+    assert np.allclose(v["throughput"][emission].mean(axis=0), expected, rtol=1e-9)
     assert np.all(v["depth"][emission] == 0)
 
 
@@ -316,10 +316,10 @@ def test_light_paths_refract_into_a_liquid_without_the_radiance_scale():
     Entering and leaving a dielectric cancel, so images of lights outside the glass miss it."""
     lp = _light_paths("juice", overrides=("media.juice.sigma_t=2", "media.juice.albedo=1"))
     v = lp.kernel.vertices()
-    flux = v["power"][v["kind"] == 0].mean(axis=0) * np.pi  # Le pi A / pick
+    flux = v["throughput"][v["kind"] == 0].mean(axis=0) * np.pi  # Le pi A / pick
     inside = (v["kind"] == 2) & (v["depth"] == 2)
     assert inside.sum() > 50
-    np.testing.assert_allclose(v["power"][inside] / flux, 1.0, rtol=1e-9)
+    np.testing.assert_allclose(v["throughput"][inside] / flux, 1.0, rtol=1e-9)
 
 
 def test_records_follow_depth_and_medium_rules():

@@ -38,7 +38,7 @@ struct Beam {
     RGB spectral_ratio{1.0};  // the light path's channel pdf ratios at the origin
     int32_t medium = -1;
     int16_t depth = 0; // real scattering events of the light path before the origin (16 bits
-                       // suffice: see LightSegment)
+                       // suffice: see MediumSegment)
 };
 
 // Closest approach of a query ray and a beam's axis.

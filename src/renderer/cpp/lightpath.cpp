@@ -49,6 +49,7 @@ void LightPaths::begin(int64_t iteration) {
     slot_segment_.resize(n);
     slot_has_vertex_.assign(n, 0);
     slot_has_segment_.assign(n, 0);
+    tracks_.resize(complete_ ? n : 0);
 #pragma omp parallel for schedule(static) num_threads(threads_)
     for (int64_t i = 0; i < int64_t(n); ++i) {
         LightPathState &p = paths_[i];
@@ -58,7 +59,7 @@ void LightPaths::begin(int64_t iteration) {
         emit(p, size_t(i));
     }
     paths_traced_ += n;
-    collect(n);
+    collect(n, [](size_t slot) { return slot; });
     active_.resize(n);
     std::iota(active_.begin(), active_.end(), 0);
 }
@@ -92,22 +93,30 @@ EmissionSample sample_emission(const Scene &scene, const double u[6]) {
             square_to_triangle(u[2], u[3], b1, b2);
             s.pos = T.point(b1, b2);
             s.vertex_power = e.radiance * (e.area / pick);
+            s.pdf_pos = pick / e.area;
             Vec3 local = square_to_cosine_hemisphere(u[4], u[5]);
             if (local.z <= 0) return s;
             s.dir = Frame(T.n).to_world(local);
             s.power = e.radiance * (kPi * (e.area / pick));
+            s.pdf_dir = local.z * kInvPi;
             break;
         }
         case LightType::Point:
             s.pos = l.position;
             s.dir = square_to_uniform_sphere(u[4], u[5]);
             s.power = l.intensity * (4 * kPi / pick);
+            s.vertex_power = l.intensity / pick;
+            s.pdf_pos = pick;
+            s.pdf_dir = kInv4Pi;
             break;
         case LightType::Spot: {
             // Uniform in the cutoff cone, weighted by the falloff.
             s.pos = l.position;
             s.dir = square_to_uniform_cone(l.direction, l.cos_cutoff, u[4], u[5]);
             s.power = l.intensity * (l.spot_falloff(s.dir) / (square_to_uniform_cone_pdf(l.cos_cutoff) * pick));
+            s.vertex_power = l.intensity / pick;
+            s.pdf_pos = pick;
+            s.pdf_dir = square_to_uniform_cone_pdf(l.cos_cutoff);
             break;
         }
         case LightType::Directional: {
@@ -120,6 +129,9 @@ EmissionSample sample_emission(const Scene &scene, const double u[6]) {
             s.pos = sun.centre + (f.s * disk.x + f.t * disk.y) * radius;
             s.dir = l.direction;
             s.power = l.intensity * (radius * radius / (square_to_uniform_disk_concentric_pdf() * pick));
+            s.vertex_power = l.intensity / pick;
+            s.pdf_pos = pick;  // of the delta direction; the disk's density goes to the next vertex
+            s.pdf_dir = square_to_uniform_disk_concentric_pdf() / (radius * radius);
             break;
         }
     }
@@ -134,15 +146,29 @@ void LightPaths::emit(LightPathState &p, size_t slot) {
     const EmissionSample e = sample_emission(scene, u);
     if (e.light < 0) return;
     const Light &l = scene.lights[e.light];
-    if (l.type == LightType::Area) {
-        const Triangle &T = scene.triangles[e.triangle];
-        if (record_vertices_) {
-            LightVertex &v = record_vertex(slot, p, VertexKind::Emission, e.pos, T.n);
-            v.power = e.vertex_power;
+    const bool area = l.type == LightType::Area;
+    if (area ? record_vertices_ : complete_) {
+        // The light's own vertex: wi holds an area light's normal, a spot's axis or a
+        // directional light's direction of travel.
+        const Vec3 wi = area ? scene.triangles[e.triangle].n : l.direction;
+        PathVertex &v = record_vertex(slot, p, VertexKind::Emission, e.pos, wi);
+        v.throughput = e.vertex_power;
+        v.light = int16_t(e.light);
+        if (area) {
+            const Triangle &T = scene.triangles[e.triangle];
             v.triangle = e.triangle;
             v.medium = T.transition ? T.exterior : emission_medium_triangle_[e.triangle];
+        } else {
+            v.medium = emission_medium_light_[e.light];
         }
-        if (!e.has_direction) return;
+        if (complete_) {
+            v.pdf_fwd = e.pdf_pos;
+            v.delta = !area;  // a point or spot light's position, a directional light's direction
+        }
+    }
+    if (!e.has_direction) return;
+    if (area) {
+        const Triangle &T = scene.triangles[e.triangle];
         start_path_at(p, scene.spawn(e.pos, e.triangle, e.dir));
         p.medium = T.transition ? T.medium_after(-1, e.dir) : emission_medium_triangle_[e.triangle];
     } else {
@@ -153,6 +179,19 @@ void LightPaths::emit(LightPathState &p, size_t slot) {
     }
     p.dir = e.dir;
     p.power = e.power;
+    if (complete_) {
+        DensityTrack &t = track(p);
+        t = DensityTrack{};
+        DensityVertex &light = t.last;  // recorded above: collect gives it its record
+        light.pos = t.piece_start = e.pos;
+        light.pdf_dir = e.pdf_dir;
+        if (area) {
+            light.normal = scene.triangles[e.triangle].n;
+            light.sampling = DensityVertex::Sampling::Cosine;
+        }
+        light.at_infinity = l.type == LightType::Directional;
+        light.delta_light = !area;
+    }
     double peak = max_component(p.power);
     if (!(peak > 0) || !is_finite(p.power)) return;
     p.inv_initial = 1 / peak;
@@ -177,10 +216,9 @@ size_t LightPaths::shade(const Hits &hits) {
             const RGB ratio_at_origin = p.spectral.ratio;
             FreeFlight ff = sample_free_flight(scene.media[p.medium], segment_origin(p), p.dir, t_hit + p.lead,
                                                p.rng, local, p.spectral);
-            lookups += local.density_lookups;
             // A point on this segment scatters into a vertex of depth p.depth + 1.
             if (record_segments_ && depth_.allows(p.depth + 1)) {
-                LightSegment &s = slot_segment_[k];
+                MediumSegment &s = slot_segment_[k];
                 s.origin = segment_origin(p);
                 s.dir = p.dir;
                 s.length = ff.scattered ? ff.t : t_hit + p.lead;
@@ -193,11 +231,24 @@ size_t LightPaths::shade(const Hits &hits) {
                 s.scattered = ff.scattered;
                 slot_has_segment_[k] = 1;
             }
-            p.power *= ff.weight;
-            if (ff.scattered) {
-                scatter_in_medium(p, size_t(k), segment_point(p, ff.t));
-                continue;
+            if (complete_) {
+                // The stand-in optical depth of this piece of the straight line from the last
+                // vertex; the next piece starts where this one ends.
+                DensityTrack &t = track(p);
+                const Vec3 end = ff.scattered ? segment_point(p, ff.t)
+                                 : tri >= 0   ? scene.triangles[tri].point(hits.u[k], hits.v[k])
+                                              : t.piece_start + p.dir * kInf;
+                const Vec3 to = end - t.piece_start;
+                const double piece = is_finite(to) ? length(to) : kInf;  // escaping: infinite
+                if (piece > 0)
+                    t.flight_tau += flight_depth(scene.media[p.medium], t.piece_start,
+                                                 piece < kInf ? to / piece : p.dir, piece);
+                t.piece_start = end;
             }
+            p.power *= ff.weight;
+            if (ff.scattered) scatter_in_medium(p, size_t(k), segment_point(p, ff.t), local);
+            lookups += local.density_lookups;
+            if (ff.scattered) continue;
         }
         if (tri < 0) {
             p.alive = false;
@@ -207,20 +258,30 @@ size_t LightPaths::shade(const Hits &hits) {
         Vec3 x = T.point(hits.u[k], hits.v[k]);
         if (scene.materials[T.material].type == MaterialType::Null) {
             cross_null_boundary(scene, p, tri, x);
+            if (complete_) track(p).piece_start = x;
             continue;
         }
         scatter_on_surface(p, size_t(k), tri, x);
     }
     stats_.density_lookups += lookups;
-    collect(n);
+    collect(n, [&](size_t slot) { return size_t(active_[slot]); });
     return 0;
 }
 
-void LightPaths::scatter_in_medium(LightPathState &p, size_t slot, const Vec3 &x) {
+void LightPaths::scatter_in_medium(LightPathState &p, size_t slot, const Vec3 &x, MediumStats &stats) {
     const Medium &m = scene_->media[p.medium];
     ++p.depth;
     Vec3 wi = -p.dir;
-    if (record_vertices_ && depth_.allows(p.depth)) record_vertex(slot, p, VertexKind::Medium, x, wi);
+    PathVertex *record = nullptr;
+    if (record_vertices_ && depth_.allows(p.depth)) record = &record_vertex(slot, p, VertexKind::Medium, x, wi);
+    if (complete_) {
+        DensityVertex v;
+        v.pos = x;
+        v.sigma = flight_sigma(m, x, stats);
+        v.medium = p.medium;
+        v.sampling = DensityVertex::Sampling::Phase;
+        advance_densities(p, v, record);
+    }
     if (!depth_.allows(p.depth + 1)) {
         p.alive = false;
         return;
@@ -235,8 +296,30 @@ void LightPaths::scatter_on_surface(LightPathState &p, size_t slot, int tri, con
     const Material &mat = scene_->materials[T.material];
     ++p.depth;
     Vec3 wi = -p.dir;
-    if (record_vertices_ && !mat.is_delta() && dot(wi, T.n) > 0 && depth_.allows(p.depth))
-        record_vertex(slot, p, VertexKind::Surface, x, wi).triangle = tri;
+    const bool lit = dot(wi, T.n) > 0;  // one-sided surfaces absorb light from behind
+    // Connectible vertices: non-delta surfaces lit from the front. Complete subpaths also keep
+    // delta ones (a dielectric from either side).
+    const bool kept = complete_ ? lit || mat.type == MaterialType::Dielectric : lit && !mat.is_delta();
+    PathVertex *record = nullptr;
+    if (record_vertices_ && kept && depth_.allows(p.depth)) {
+        record = &record_vertex(slot, p, VertexKind::Surface, x, wi);
+        record->triangle = tri;
+        record->delta = complete_ && mat.is_delta();
+    }
+    if (complete_) {
+        DensityVertex v;
+        v.pos = x;
+        v.normal = T.n;
+        if (mat.type == MaterialType::Diffuse) {
+            v.sampling = DensityVertex::Sampling::Cosine;
+        } else if (mat.type == MaterialType::Dielectric) {
+            v.sampling = DensityVertex::Sampling::Dielectric;
+            v.pdf_dir = mat.ior;
+        } else {
+            v.pdf_dir = 1;  // a mirror reflects with probability 1
+        }
+        advance_densities(p, v, record);
+    }
     if (!depth_.allows(p.depth + 1)) {
         p.alive = false;
         return;
@@ -257,13 +340,13 @@ bool LightPaths::russian_roulette(LightPathState &p) {
 
 // Slot `slot`'s vertex: path p at x, arrived from wi, with its power, medium, depth and
 // specular flag as they are now; the caller adds what its kind needs (a triangle).
-LightVertex &LightPaths::record_vertex(size_t slot, const LightPathState &p, VertexKind kind, const Vec3 &x,
-                                            const Vec3 &wi) {
-    LightVertex &v = slot_vertex_[slot];
-    v = LightVertex();
+PathVertex &LightPaths::record_vertex(size_t slot, const LightPathState &p, VertexKind kind, const Vec3 &x,
+                                      const Vec3 &wi) {
+    PathVertex &v = slot_vertex_[slot];
+    v = PathVertex();
     v.pos = x;
     v.wi = wi;
-    v.power = p.power;
+    v.throughput = p.power;
     v.path = int32_t(&p - paths_.data());
     v.medium = p.medium;
     v.depth = int16_t(p.depth);
@@ -273,10 +356,81 @@ LightVertex &LightPaths::record_vertex(size_t slot, const LightPathState &p, Ver
     return v;
 }
 
-void LightPaths::collect(size_t slots) {
+// Density at vertex v of the direction `out`, for a walk that reached v from direction `back`.
+static double direction_density(const Scene &scene, const DensityVertex &v, const Vec3 &out, const Vec3 &back) {
+    switch (v.sampling) {
+        case DensityVertex::Sampling::Cosine: return std::max(0.0, dot(v.normal, out)) * kInvPi;
+        case DensityVertex::Sampling::Phase: return phase_eval(scene.media[v.medium].phase, back, out);
+        case DensityVertex::Sampling::Dielectric: {
+            const double cos_in = dot(back, v.normal), eta = cos_in > 0 ? v.pdf_dir : 1 / v.pdf_dir;
+            double cos_t;
+            const double F = fresnel_dielectric(std::abs(cos_in), eta, cos_t);
+            return (dot(out, v.normal) > 0) == (cos_in > 0) ? F : 1 - F;  // reflected : refracted
+        }
+        default: return v.pdf_dir;
+    }
+}
+
+// The change of measure at v for a direction `d` through it: |cos| on a surface or at an area
+// light, the extinction in a medium.
+static double measure_at(const DensityVertex &v, const Vec3 &d) {
+    return v.sampling == DensityVertex::Sampling::Phase ? v.sigma : std::abs(dot(v.normal, d));
+}
+
+// The density with which the path sampled x from its last vertex.
+double LightPaths::forward_density(const DensityTrack &t, const DensityVertex &x) const {
+    const DensityVertex &last = t.last;
+    const Vec3 to = x.pos - last.pos;
+    const double d2 = dot(to, to);
+    if (!(d2 > 0)) return 0.0;
+    const Vec3 out = to / std::sqrt(d2);
+    const double pdf_dir = direction_density(*scene_, last, out, last.wi);
+    return pdf_dir * std::exp(-x.tau_in) * measure_at(x, out) / (last.at_infinity ? 1.0 : d2);
+}
+
+// The vertex before the last one as a walk coming the other way, from x through the last
+// vertex, would sample it. A light's delta position or direction cannot be sampled so: 0.
+void LightPaths::reverse_density(const DensityTrack &t, const DensityVertex &x) {
+    const DensityVertex &last = t.last, &before = t.before;
+    if (before.record < 0) return;
+    PathVertex &prev = vertices_[size_t(before.record)];
+    const Vec3 to = before.pos - last.pos, from = x.pos - last.pos;
+    const double d2 = dot(to, to), f2 = dot(from, from);
+    if (before.delta_light || !(d2 > 0) || !(f2 > 0)) {
+        prev.pdf_rev = 0;
+        return;
+    }
+    const Vec3 back = to / std::sqrt(d2);
+    const double pdf_dir = direction_density(*scene_, last, back, from / std::sqrt(f2));
+    prev.pdf_rev = pdf_dir * std::exp(-last.tau_in) * measure_at(before, back) / d2;
+}
+
+// A new vertex x of a complete subpath (`record`: its record, if kept): its forward density,
+// the reverse density of the vertex two back, and x becomes the last vertex.
+void LightPaths::advance_densities(LightPathState &p, DensityVertex x, PathVertex *record) {
+    DensityTrack &t = track(p);
+    const Vec3 to_last = t.last.pos - x.pos;
+    x.wi = t.last.at_infinity ? -p.dir : to_last / length(to_last);
+    x.tau_in = t.flight_tau;
+    if (record) {
+        record->wi = x.wi;  // as the densities take it: from the recorded positions
+        record->pdf_fwd = forward_density(t, x);
+    }
+    reverse_density(t, x);
+    t.before = t.last;
+    t.last = x;  // its record index comes in collect
+    t.flight_tau = 0;
+    t.piece_start = x.pos;
+}
+
+template <typename PathOf>
+void LightPaths::collect(size_t slots, PathOf &&path_of) {
     for (size_t k = 0; k < slots; ++k) {
         if (slot_has_segment_[k]) segments_.push_back(slot_segment_[k]);
-        if (slot_has_vertex_[k]) vertices_.push_back(slot_vertex_[k]);
+        if (slot_has_vertex_[k]) {
+            vertices_.push_back(slot_vertex_[k]);
+            if (complete_) tracks_[path_of(k)].last.record = int64_t(vertices_.size()) - 1;
+        }
     }
     check_capacity();
 }

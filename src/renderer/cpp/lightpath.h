@@ -1,37 +1,40 @@
-// Light-path tracing shared by the light-side methods (lt, pm, sppm, ppb):
-// a wavefront tracer of N light paths per iteration that records every
-// scattering vertex and every straight segment inside a medium.
+// Light paths shared by the light-side methods (lt, pm, sppm, ppb, and the bidirectional and
+// virtual-light methods to come): a kernel that traces N light paths per iteration and records
+// their scattering vertices and their straight segments inside media (path_records.h).
 //   Veach 1997, "Robust Monte Carlo methods for light transport simulation",
 //     ch. 5 (adjoint BSDFs) and ch. 10 (particle tracing);
 //   Jensen 2001, "Realistic Image Synthesis Using Photon Mapping" (emission, photon power).
 //
 // API (stable; other methods build on it)
 // ---------------------------------------
-//   LightPathTracer(scene, max_depth, rr_depth, seed, paths_per_iteration, threads, max_records)
-//   set_emission_media(per_triangle, per_light)  medium each light emits into (-1 = vacuum);
-//                                                the Python side finds them by probing rays
-//                                                (renderer/methods/lightpath.py)
-//   One iteration, driven from Python (renderer/methods/lightpath.py: LightPaths.trace):
-//     n = begin_iteration(i, rays)   pass 1: emission sampling for every path; writes n rays
-//     while n:
-//       scatter(hits)                pass 2: medium free flight, surface/medium scattering,
-//                                    recording of vertices and segments, Russian roulette
-//       n = next_rays(rays)          pass 3: extension rays of the paths still alive
+//   LightPaths(scene, max_depth, rr_depth, seed, paths_per_iteration, threads, max_records)
+//   set_emission_media(per_triangle, per_light)  medium each light emits into (-1 = vacuum)
+//   set_recording(vertices, segments, complete)  what to record (default: vertices where a
+//       camera path can connect or gather, and segments); `complete` records every vertex,
+//       the lights' own and delta ones included, with their densities (path_records.h)
+//   One iteration is the protocol of passes.h, run by renderer/wavefront.py:
+//     begin(i)          emission sampling for every path
+//     next_rays(rays)   extension rays of the paths still alive
+//     shade(hits)       medium free flight, surface or medium scattering, recording of vertices
+//                       and segments, Russian roulette
 //   Then read vertices() and segments(): records of this iteration only, in a fixed order
 //   (bounce by bounce, path index ascending within a bounce) whatever the thread count.
 //
-// Units: `power` is a flux weight. For any function g of a vertex,
+// Units: a light vertex's `throughput` is its power, a flux weight. For any function g of a
+// vertex,
 //   E[ sum over the iteration's vertices of power * g(vertex) ] / paths_per_iteration
 // is the integral of g against the flux arriving at such vertices (Veach 1997,
 // sec. 10.2, particle tracing as a measurement): divide sums by
 // paths_per_iteration(), never by the number of records.
-//   - Emission vertices (area lights only; point, spot and directional
-//     emitters cannot be seen by a pinhole camera): power = Le / pdf_A (pdf_A
-//     includes the light selection). The emitted radiance towards a direction w
-//     is then power * max(0, cos(n, w)); `wi` holds the light's normal n.
-//   - Surface vertices (non-delta surfaces, light arriving on the front side):
-//     power = flux arriving. Outgoing flux towards w is power * f(wi, w) * |cos(n, w)|
-//     with the adjoint BSDF (diffuse: reflectance / pi).
+//   - Emission vertices: power = Le / pdf_A (pdf_A includes the light selection). The emitted
+//     radiance towards a direction w is then power * max(0, cos(n, w)); `wi` holds the light's
+//     normal n. By default only area lights have one (point, spot and directional emitters
+//     cannot be seen by a pinhole camera); complete subpaths start with the light's vertex
+//     whatever its type (power = the emitted flux weight before the direction is sampled:
+//     intensity / pick, and irradiance / (pdf_disk pick) for a directional light).
+//   - Surface vertices (non-delta surfaces, light arriving on the front side; complete
+//     subpaths also keep delta surfaces): power = flux arriving. Outgoing flux towards w is
+//     power * f(wi, w) * |cos(n, w)| with the adjoint BSDF (diffuse: reflectance / pi).
 //   - Medium vertices (real collisions): power already includes sigma_s (the
 //     free-flight weight sigma_s Tr / pdf), so in-scattered radiance towards w is
 //     power * phase(wi, w) per unit volume density of vertices.
@@ -59,36 +62,32 @@
 #include <vector>
 
 #include "passes.h"
+#include "path_records.h"
 
 namespace pgi {
 
-enum class VertexKind : uint8_t { Emission = 0, Surface = 1, Medium = 2 };
-
-struct LightVertex {
+// What a vertex of a complete subpath keeps for the densities of its neighbours
+// (path_records.h): the density of the next vertex needs how the direction on was sampled,
+// and the reverse density of the vertex before needs the direction back and that vertex. Every
+// direction and cosine is taken from the recorded positions (the rays leaving surfaces start
+// offset off them), so that densities are functions of the recorded path.
+struct DensityVertex {
+    enum class Sampling : uint8_t { Stored, Cosine, Phase, Dielectric };
     Vec3 pos;
-    Vec3 wi;                 // unit, from pos back towards the previous vertex (emission: light normal)
-    RGB power{0.0};          // flux weight, see above
-    int32_t path = 0;        // index of the path within its iteration
-    int32_t triangle = -1;   // surface and emission vertices
-    int32_t medium = -1;     // medium vertices: the medium; surface: the medium on the side of wi
-    int16_t depth = 0;       // real scattering events up to and including this vertex
-    VertexKind kind = VertexKind::Surface;
-    bool after_specular = false;  // the previous real event was a delta BSDF (caustic light)
-};
-
-// Depths are stored in 16 bits: the loader keeps min(rr_depth, bounded max_depth) <= 10000
-// and roulette lets a path on with probability at most 0.95 after rr_depth, so a path of
-// 32767 events has a probability under 0.95^22767, about 1e-507.
-struct LightSegment {
-    Vec3 origin, dir;        // dir unit
-    double length = 0;       // to the sampled collision, or t_surface when none was sampled
-    double t_surface = 0;    // to the next surface along dir (kInf when the ray escapes)
-    RGB power{0.0};          // flux weight at the origin, before this segment's transmittance
-    RGB spectral_ratio{1.0}; // the path's channel pdf ratios at the origin (SpectralMis)
-    int32_t path = 0;
-    int32_t medium = -1;
-    int16_t depth = 0;       // real scattering events before the origin
-    bool scattered = false;  // a medium vertex (if in range) follows at origin + dir * length
+    Vec3 normal;              // its surface's normal (zero in a medium, at point and
+                              // directional lights)
+    Vec3 wi;                  // unit, towards the vertex before it (zero at a light)
+    double pdf_dir = 0;       // Stored: the density of the direction sampled there (a mirror's
+                              // 1, a point or spot light's, a directional light's disk's area
+                              // density); Dielectric: the interface's ior (the discrete
+                              // probability of reflection or refraction follows the directions)
+    double sigma = 0;         // its extinction, if it lies in a medium
+    double tau_in = 0;        // stand-in optical depth of the edge from the vertex before
+    int64_t record = -1;      // its index in the vertices of this iteration (-1: none yet)
+    int32_t medium = -1;      // Phase: the medium whose phase function sampled
+    Sampling sampling = Sampling::Stored;  // Cosine: about `normal` (diffuse, area lights)
+    bool at_infinity = false; // a directional light's: parallel rays, no 1 / distance^2
+    bool delta_light = false; // a light's delta position or direction: never sampled back
 };
 
 struct LightPathState {
@@ -105,6 +104,16 @@ struct LightPathState {
     SpectralMis spectral;  // hero channel and path pdf ratios in chromatic media
 };
 
+// What a complete subpath keeps for its densities (kept beside its state, only when complete
+// subpaths are recorded): its last two vertices, the stand-in optical depth travelled since
+// the last (summed over the pieces of the straight line from it between the null boundaries
+// crossed, not over the rays, whose origins are offset) and where the current piece starts.
+struct DensityTrack {
+    DensityVertex last, before;
+    double flight_tau = 0;
+    Vec3 piece_start;
+};
+
 // What emission samples from six uniforms (u[0] picks the light, u[1] an area light's
 // triangle, u[2..3] the point on it, u[4..5] the direction): the light, where the path
 // starts (an area light's point, a point or spot light's position, a point on a directional
@@ -115,6 +124,8 @@ struct EmissionSample {
     int triangle = -1;
     Vec3 pos, dir;
     RGB power{0.0}, vertex_power{0.0};
+    double pdf_pos = 0;  // area density of pos (selection included; delta positions: the pick)
+    double pdf_dir = 0;  // density of dir: solid angle; a directional light's disk: area
     bool has_direction = false;
 };
 EmissionSample sample_emission(const Scene &scene, const double u[6]);
@@ -141,25 +152,36 @@ public:
     size_t shade(const Hits &hits);
     void end() {}
 
-    const std::vector<LightVertex> &vertices() const { return vertices_; }
-    const std::vector<LightSegment> &segments() const { return segments_; }
+    const std::vector<PathVertex> &vertices() const { return vertices_; }
+    const std::vector<MediumSegment> &segments() const { return segments_; }
     int64_t iteration() const { return iteration_; }
     uint64_t density_lookups() const { return stats_.density_lookups; }
     uint64_t paths_traced() const { return paths_traced_; }
 
-    // Record only what a method needs (defaults: everything).
-    void set_recording(bool vertices, bool segments) {
-        record_vertices_ = vertices;
+    // Record only what a method needs (defaults: connectible vertices and segments), or
+    // complete subpaths with their densities (path_records.h).
+    void set_recording(bool vertices, bool segments, bool complete = false) {
+        record_vertices_ = vertices || complete;
         record_segments_ = segments;
+        complete_ = complete;
     }
+    bool complete() const { return complete_; }
 
 private:
     void emit(LightPathState &p, size_t slot);
-    void scatter_in_medium(LightPathState &p, size_t slot, const Vec3 &x);
+    void scatter_in_medium(LightPathState &p, size_t slot, const Vec3 &x, MediumStats &stats);
     void scatter_on_surface(LightPathState &p, size_t slot, int tri, const Vec3 &x);
     bool russian_roulette(LightPathState &p);
-    LightVertex &record_vertex(size_t slot, const LightPathState &p, VertexKind kind, const Vec3 &x, const Vec3 &wi);
-    void collect(size_t slots);  // appends per-slot records in slot order
+    PathVertex &record_vertex(size_t slot, const LightPathState &p, VertexKind kind, const Vec3 &x, const Vec3 &wi);
+    // Complete subpaths: the densities once a new vertex is known (its forward one, and the
+    // reverse one of the vertex two back), and its entry among the path's last two vertices.
+    DensityTrack &track(const LightPathState &p) { return tracks_[size_t(&p - paths_.data())]; }
+    double forward_density(const DensityTrack &t, const DensityVertex &x) const;
+    void reverse_density(const DensityTrack &t, const DensityVertex &x);
+    void advance_densities(LightPathState &p, DensityVertex x, PathVertex *record);
+    // Appends the per-slot records in slot order; `path_of(slot)` is the slot's path.
+    template <typename PathOf>
+    void collect(size_t slots, PathOf &&path_of);
     void check_capacity() const;
 
     std::shared_ptr<const Scene> scene_;
@@ -170,15 +192,16 @@ private:
     int64_t max_records_;
     int64_t iteration_ = -1;
     std::vector<LightPathState> paths_;
+    std::vector<DensityTrack> tracks_;  // complete subpaths: one per path
     std::vector<int32_t> active_;
     std::vector<int32_t> emission_medium_triangle_, emission_medium_light_;
     // One optional vertex and segment per active path and pass.
-    std::vector<LightVertex> slot_vertex_;
-    std::vector<LightSegment> slot_segment_;
+    std::vector<PathVertex> slot_vertex_;
+    std::vector<MediumSegment> slot_segment_;
     std::vector<uint8_t> slot_has_vertex_, slot_has_segment_;
-    std::vector<LightVertex> vertices_;
-    std::vector<LightSegment> segments_;
-    bool record_vertices_ = true, record_segments_ = true;
+    std::vector<PathVertex> vertices_;
+    std::vector<MediumSegment> segments_;
+    bool record_vertices_ = true, record_segments_ = true, complete_ = false;
     MediumStats stats_;
     uint64_t paths_traced_ = 0;
 };

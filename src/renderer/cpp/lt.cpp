@@ -14,14 +14,14 @@ void LightTracing::begin(int64_t iteration) {
         throw std::logic_error("lt: the light paths of iteration " + std::to_string(iteration) + " come first");
     const Scene &scene = *scene_;
     const Camera &cam = scene.camera;
-    const std::vector<LightVertex> &verts = paths.vertices();
+    const std::vector<PathVertex> &verts = paths.vertices();
     const double inv_paths = 1.0 / double(paths.paths_per_iteration());
     splats_.assign(verts.size(), Splat());
     shadow_.open(verts.size());
     light_paths_traced_ += uint64_t(paths.paths_per_iteration());
 #pragma omp parallel for schedule(static) num_threads(threads_)
     for (int64_t k = 0; k < int64_t(verts.size()); ++k) {
-        const LightVertex &v = verts[k];
+        const PathVertex &v = verts[k];
         ShadowRay &r = shadow_[k];
         r.live = false;
         CameraConnection c = connect_to_camera(cam, v.pos);
@@ -48,7 +48,7 @@ void LightTracing::begin(int64_t iteration) {
                 f = RGB(phase_eval(scene.media[v.medium].phase, v.wi, c.to_camera));
                 break;
         }
-        RGB value = v.power * f * (c.importance * inv_paths);
+        RGB value = v.throughput * f * (c.importance * inv_paths);
         if (is_black(value)) continue;
         splats_[k].pixel = c.pixel;
         r.dir = -c.to_camera;  // placeholder; restart_at aims at the target

@@ -10,47 +10,55 @@ using namespace nb::literals;
 
 namespace {
 
-nb::dict vertex_arrays(const std::vector<LightVertex> &vs) {
+nb::dict vertex_arrays(const std::vector<PathVertex> &vs) {
     size_t n = vs.size();
-    std::vector<double> pos(3 * n), wi(3 * n), power(3 * n);
+    std::vector<double> pos(3 * n), wi(3 * n), throughput(3 * n), pdf_fwd(n), pdf_rev(n);
     std::vector<int32_t> path(n), tri(n), medium(n);
-    std::vector<int16_t> depth(n);
-    std::vector<uint8_t> kind(n), after_specular(n);
+    std::vector<int16_t> depth(n), light(n);
+    std::vector<uint8_t> kind(n), delta(n), after_specular(n);
     for (size_t i = 0; i < n; ++i) {
-        const LightVertex &v = vs[i];
+        const PathVertex &v = vs[i];
         for (int a = 0; a < 3; ++a) {
             pos[3 * i + a] = v.pos[a];
             wi[3 * i + a] = v.wi[a];
-            power[3 * i + a] = v.power[a];
+            throughput[3 * i + a] = v.throughput[a];
         }
+        pdf_fwd[i] = v.pdf_fwd;
+        pdf_rev[i] = v.pdf_rev;
         path[i] = v.path;
         tri[i] = v.triangle;
         medium[i] = v.medium;
+        light[i] = v.light;
         depth[i] = v.depth;
         kind[i] = uint8_t(v.kind);
+        delta[i] = v.delta;
         after_specular[i] = v.after_specular;
     }
     nb::dict d;
     d["position"] = to_numpy(std::move(pos), {n, 3});
     d["wi"] = to_numpy(std::move(wi), {n, 3});
-    d["power"] = to_numpy(std::move(power), {n, 3});
+    d["throughput"] = to_numpy(std::move(throughput), {n, 3});
+    d["pdf_fwd"] = to_numpy(std::move(pdf_fwd), {n});
+    d["pdf_rev"] = to_numpy(std::move(pdf_rev), {n});
     d["path"] = to_numpy(std::move(path), {n});
     d["triangle"] = to_numpy(std::move(tri), {n});
     d["medium"] = to_numpy(std::move(medium), {n});
+    d["light"] = to_numpy(std::move(light), {n});
     d["depth"] = to_numpy(std::move(depth), {n});
     d["kind"] = to_numpy(std::move(kind), {n});
+    d["delta"] = to_numpy(std::move(delta), {n});
     d["after_specular"] = to_numpy(std::move(after_specular), {n});
     return d;
 }
 
-nb::dict segment_arrays(const std::vector<LightSegment> &ss) {
+nb::dict segment_arrays(const std::vector<MediumSegment> &ss) {
     size_t n = ss.size();
     std::vector<double> origin(3 * n), dir(3 * n), power(3 * n), len(n), t_surface(n);
     std::vector<int32_t> path(n), medium(n);
     std::vector<int16_t> depth(n);
     std::vector<uint8_t> scattered(n);
     for (size_t i = 0; i < n; ++i) {
-        const LightSegment &s = ss[i];
+        const MediumSegment &s = ss[i];
         for (int a = 0; a < 3; ++a) {
             origin[3 * i + a] = s.origin[a];
             dir[3 * i + a] = s.dir[a];
@@ -98,7 +106,7 @@ static void bind_lt(nb::module_ &m) {
         .def(nb::init<std::shared_ptr<const Scene>, int, int, uint64_t, int64_t, int, int64_t>(), "scene"_a,
              "max_depth"_a, "rr_depth"_a, "seed"_a, "paths_per_iteration"_a, "threads"_a, "max_records"_a)
         .def("set_emission_media", &LightPaths::set_emission_media, "per_triangle"_a, "per_light"_a)
-        .def("set_recording", &LightPaths::set_recording, "vertices"_a, "segments"_a)
+        .def("set_recording", &LightPaths::set_recording, "vertices"_a, "segments"_a, "complete"_a = false)
         .def_prop_ro("paths_per_iteration", &LightPaths::paths_per_iteration)
         .def("vertices", [](const LightPaths &lp) { return vertex_arrays(lp.vertices()); })
         .def("segments", [](const LightPaths &lp) { return segment_arrays(lp.segments()); })

@@ -405,6 +405,27 @@ double ratio_track(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax, S
     return tr;
 }
 
+// The deterministic stand-ins for free-flight probabilities that path densities use
+// (path_records.h): the extinction at x, and the optical depth of [0, length) along (o, d).
+// Homogeneous media: the mean of the channels' extinction (exact for grey media). Grids: the
+// grid's extinction at x, and the depth of the mean of each majorant cell's majorant and
+// minorant (exact in cells of constant density).
+inline double flight_sigma(const Medium &m, const Vec3 &x, MediumStats &stats) {
+    return m.type == MediumType::Homogeneous ? mean(m.sigma_t) : grid_sigma_t(m, x, stats);
+}
+inline double flight_depth(const Medium &m, const Vec3 &o, const Vec3 &d, double length) {
+    if (m.type == MediumType::Homogeneous) {
+        const double sigma = mean(m.sigma_t);
+        return sigma > 0 ? sigma * length : 0.0;  // no extinction: 0, even over an infinite length
+    }
+    double tau = 0;
+    traverse_cells(m, o, d, length, [&](double t0, double t1, double maj, double minor) {
+        tau += 0.5 * (maj + minor) * (t1 - t0);
+        return true;
+    });
+    return tau;
+}
+
 // Transmittance over [0, tmax): closed form in homogeneous media, the medium's
 // estimator in grids.
 inline RGB transmittance(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax, Sampler &rng,

@@ -187,6 +187,11 @@ static void add_scene(nb::module_ &m) {
                  }
                  return std::make_tuple(to_numpy(std::move(t), {size_t(n)}), to_numpy(std::move(w), {size_t(n), 3}));
              }, "medium"_a, "origin"_a, "direction"_a, "tmax"_a, "seed"_a, "n"_a)
+        // The deterministic stand-in optical depth that path densities use (medium.h).
+        .def("flight_depth",
+             [](const Scene &s, int medium, V3 origin, V3 direction, double length) {
+                 return flight_depth(s.media.at(medium), vec(origin), normalize(vec(direction)), length);
+             }, "medium"_a, "origin"_a, "direction"_a, "length"_a)
         .def("density",
              [](const Scene &s, int medium, Array<double> points) {
                  size_t n = points.shape(0);
@@ -210,19 +215,19 @@ static void add_scene(nb::module_ &m) {
                  auto valid = [&](int32_t t) { return t >= 0 && size_t(t) < s.triangles.size(); };
                  if (!valid(tri) || !std::all_of(triangle.data(), triangle.data() + n, valid))
                      throw std::invalid_argument("surface_photon_power: no such triangle");
-                 std::vector<LightVertex> photons(n);
+                 std::vector<PathVertex> photons(n);
                  std::vector<Vec3> points(n);
                  for (size_t i = 0; i < n; ++i) {
                      const double *p = pos.data() + 3 * i, *w = wi.data() + 3 * i, *f = power.data() + 3 * i;
                      photons[i].pos = points[i] = Vec3(p[0], p[1], p[2]);
                      photons[i].wi = normalize(Vec3(w[0], w[1], w[2]));
-                     photons[i].power = RGB(f[0], f[1], f[2]);
+                     photons[i].throughput = RGB(f[0], f[1], f[2]);
                      photons[i].triangle = triangle.data()[i];
                  }
                  PointTree tree;
                  tree.build(points);
                  RGB sum = reflected_photon_power(s, tree, photons, tri, vec(x), normalize(vec(wo)), radius,
-                                                  [](const LightVertex &) { return true; });
+                                                  [](const PathVertex &) { return true; });
                  return V3{sum.x, sum.y, sum.z};
              }, "tri"_a, "x"_a, "wo"_a, "radius"_a, "pos"_a, "triangle"_a, "wi"_a, "power"_a);
 }

@@ -63,7 +63,7 @@ void PhotonMapping::begin(int64_t iteration) {
         throw std::logic_error("pm: the light paths of iteration " + std::to_string(iteration) + " come first");
     surface_photons_.clear();
     volume_photons_.clear();
-    for (const LightVertex &v : paths.vertices()) {
+    for (const PathVertex &v : paths.vertices()) {
         if (v.kind == VertexKind::Surface) surface_photons_.push_back(v);
         else if (v.kind == VertexKind::Medium) volume_photons_.push_back(v);
     }
@@ -98,11 +98,11 @@ RGB PhotonMapping::beam_estimate(const GatherPath &p, double t_hit, double radiu
     const double kernel = 1 / (kPi * radius * radius);
     Vec3 to_camera = -p.dir;
     volume_tree_.query_ray(origin, p.dir, tmax, radius, [&](uint32_t i, double t, double) {
-        const LightVertex &ph = volume_photons_[i];
+        const PathVertex &ph = volume_photons_[i];
         if (ph.medium != p.medium) return;
         if (!depth_.allows(ph.depth + p.specular)) return;
         ++accepted;
-        sum += track.at(t) * ph.power * phase_eval(m.phase, ph.wi, to_camera);
+        sum += track.at(t) * ph.throughput * phase_eval(m.phase, ph.wi, to_camera);
     });
     return sum * (kernel * inv_light_paths_);
 }
@@ -111,7 +111,7 @@ RGB PhotonMapping::beam_estimate(const GatherPath &p, double t_hit, double radiu
 RGB PhotonMapping::surface_estimate(const GatherPath &p, int tri, const Vec3 &x, double radius,
                                      uint64_t &accepted) const {
     RGB reflected = reflected_photon_power(*scene_, surface_tree_, surface_photons_, tri, x, -p.dir, radius,
-                                           [&](const LightVertex &ph) {
+                                           [&](const PathVertex &ph) {
                                                if (!depth_.allows(ph.depth + p.specular)) return false;
                                                ++accepted;
                                                return true;

@@ -102,7 +102,7 @@ private:
     std::vector<GatherPath> paths_;
     std::vector<int32_t> active_;
     // This iteration's photons.
-    std::vector<LightVertex> surface_photons_, volume_photons_;
+    std::vector<PathVertex> surface_photons_, volume_photons_;
     PointTree surface_tree_, volume_tree_;
     double inv_light_paths_ = 0;
     Film film_;

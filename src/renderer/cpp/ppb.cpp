@@ -29,7 +29,7 @@ void ProgressivePhotonBeams::begin(int64_t iteration) {
         // Direct light is next-event estimated: keep photons with depth >= 2.
         photons_.clear();
         std::vector<Vec3> points;
-        for (const LightVertex &v : light.vertices())
+        for (const PathVertex &v : light.vertices())
             if (v.kind == VertexKind::Surface && v.depth >= 2) {
                 photons_.push_back(v);
                 points.push_back(v.pos);
@@ -46,7 +46,7 @@ void ProgressivePhotonBeams::begin(int64_t iteration) {
     const auto &segments = light.segments();
     std::vector<Beam> beams;
     beams.reserve(segments.size());
-    for (const LightSegment &s : segments) {
+    for (const MediumSegment &s : segments) {
         if (s.medium < 0) continue;
         Beam b;
         b.origin = s.origin;
@@ -156,7 +156,7 @@ size_t ProgressivePhotonBeams::shade(const Hits &hits) {
 RGB ProgressivePhotonBeams::gather_photons(const BeamGatherPath &p, int tri, const Vec3 &x) const {
     // The photon's vertex is x itself: v.depth + (p.depth - 1) events in all.
     RGB reflected = reflected_photon_power(*scene_, photon_tree_, photons_, tri, x, -p.dir, photon_radius_,
-                                           [&](const LightVertex &v) {
+                                           [&](const PathVertex &v) {
                                                return depth_.allows(v.depth + p.depth - 1);
                                            });
     return reflected * photon_scale_;

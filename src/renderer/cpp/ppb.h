@@ -129,7 +129,7 @@ private:
     RadiusSchedule schedule_;
     bool surface_photons_ = false;
     RadiusSchedule surface_schedule_;
-    std::vector<LightVertex> photons_;  // surface vertices after at least one scattering
+    std::vector<PathVertex> photons_;  // surface vertices after at least one scattering
     PointTree photon_tree_;
     double photon_radius_ = 0, photon_scale_ = 0;  // r and 1 / (pi r^2 N_light_paths)
     double beam_scale_ = 0;  // 1 / (2 r N_light_paths)

@@ -20,17 +20,17 @@ constexpr double kPhotonNormalAgreement = 0.5;
 // `counts(photon)` applies the method's own depth rule. Zero when wo (towards
 // the viewer) is behind the one-sided surface.
 template <typename Counts>
-RGB reflected_photon_power(const Scene &scene, const PointTree &tree, const std::vector<LightVertex> &photons,
+RGB reflected_photon_power(const Scene &scene, const PointTree &tree, const std::vector<PathVertex> &photons,
                            int tri, const Vec3 &x, const Vec3 &wo, double radius, Counts &&counts) {
     const Triangle &T = scene.triangles[tri];
     RGB sum(0.0);
     if (dot(wo, T.n) <= 0) return sum;
     tree.query_sphere(x, radius, [&](size_t i, double) {
-        const LightVertex &ph = photons[i];
+        const PathVertex &ph = photons[i];
         if (dot(scene.triangles[ph.triangle].n, T.n) < kPhotonNormalAgreement) return;
         if (dot(ph.wi, T.n) <= 0) return;
         if (!counts(ph)) return;
-        sum += ph.power;
+        sum += ph.throughput;
     });
     return sum * scene.materials[T.material].reflectance * kInvPi;
 }
