@@ -19,8 +19,8 @@ from renderer.imageio import read_exr, write_exr
 from renderer.progressive import check_threads
 from renderer.reference import render_reference
 from renderer.scene import load_scene
-from renderer.scene.loader import scene_content_digest
 from renderer.scene.model import Scene
+from renderer.scene.sources import scene_content_digest
 
 CACHE = Path(__file__).resolve().parent / ".cache"
 REFERENCE_SEEDS = (12345, 54321)  # one per half

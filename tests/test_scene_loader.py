@@ -14,7 +14,8 @@ import yaml
 from conftest import SCENES
 from renderer.errors import PgiError
 from renderer.scene import load_scene, primitives
-from renderer.scene.loader import find_scene_file, scene_sources
+from renderer.scene.loader import find_scene_file
+from renderer.scene.sources import scene_sources
 
 REPO = Path(__file__).resolve().parents[1]
 SHIPPED = ["cbox", "cbox-fog", "cbox-grid", "cbox-glass"]
@@ -660,7 +661,7 @@ def test_scene_sources_are_every_file_a_scene_reads(tmp_path: Path) -> None:
 def test_assets_named_by_overrides_are_sources_and_change_the_digest(tmp_path: Path) -> None:
     """A study's `set: [media.smoke.density=other.npy]` reads other.npy: editing it must rerun
     the scene's renders (the workflow once said "nothing to be done")."""
-    from renderer.scene.loader import scene_content_digest
+    from renderer.scene.sources import scene_content_digest
 
     scene = tmp_path / "grid"
     shutil.copytree(find_scene_file("cbox-grid").parent, scene)
@@ -1039,12 +1040,14 @@ def test_the_kinds_a_scene_names_are_the_cores():
     core binds its kinds under the same names, and its bindings refuse a value that is none
     of them (a phase function number 7, or a name given as a string)."""
     from renderer import _core
-    from renderer.scene import loader
+    from renderer.scene.media import PHASES
+    from renderer.scene.render_settings import ESTIMATORS
+    from renderer.scene.surfaces import MATERIALS
 
-    assert list(_core.MaterialType.__members__) == list(loader.MATERIALS)
-    assert list(_core.Estimator.__members__) == list(loader.ESTIMATORS)
+    assert list(_core.MaterialType.__members__) == list(MATERIALS)
+    assert list(_core.Estimator.__members__) == list(ESTIMATORS)
     # "mie" is a tabulated phase function whose table the loader computes.
-    assert list(_core.PhaseType.__members__) == [k for k in loader.PHASES if k != "mie"]
+    assert list(_core.PhaseType.__members__) == [k for k in PHASES if k != "mie"]
     for not_a_kind in (7, "hg"):
         with pytest.raises(TypeError):
             _core.eval_phase(not_a_kind, 0.0, (0.0, 0.0, 1.0), np.array([[0.0, 0.0, 1.0]]))

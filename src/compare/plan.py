@@ -44,8 +44,8 @@ def check_config_files(files: list[Path]) -> None:
     numbers no one meant (`1:30` is 90, `010` is 8)."""
     import yaml
 
-    from renderer.scene.loader import check_yaml_file
     from renderer.scene.model import format_path
+    from renderer.scene.yaml_dialect import check_yaml_file
 
     for file in files:
         try:
@@ -89,7 +89,7 @@ def number_as_text_hint(value: Any, expected: Any = "number") -> str:
     """For a schema's type error (``expected``: the type it wanted): why a number may have
     arrived as text. The workflow reads configs as YAML 1.1, where 5e-1 and 1.0e3 are strings
     (scene files read them as numbers). No hint where the number would not do either."""
-    from renderer.scene.loader import parse_yaml_value
+    from renderer.scene.yaml_dialect import parse_yaml_value
 
     if not isinstance(value, str):
         return ""

@@ -65,7 +65,7 @@ def split_sets(items: list[str], command: str = "render") -> tuple[list[str], di
         if key.startswith("method.") and command != "render":
             raise PgiError(f"--set {key}: method parameters apply to `pgi render` only")
         if key.startswith("method."):
-            from .scene.loader import parse_yaml_value
+            from .scene.yaml_dialect import parse_yaml_value
 
             params[key[len("method.") :]] = parse_yaml_value(value, f"--set {key}")
         else:
@@ -78,7 +78,7 @@ def _refuse_overwriting_the_scene(
 ) -> None:
     """No image or sidecar may replace a file the scene reads (its YAML, meshes, grids, and
     what the --set overrides name)."""
-    from .scene.loader import resolved, scene_sources
+    from .scene.sources import resolved, scene_sources
 
     try:
         sources = set(scene_sources(scene, overrides))
@@ -256,7 +256,8 @@ PLANNED_PREFIX = "# not yet implemented:"
 
 
 def cmd_methods(args: argparse.Namespace) -> int:
-    from .methods import NOT_YET_IMPLEMENTED, describe, method_ids
+    from .known_methods import NOT_YET_IMPLEMENTED
+    from .methods import describe, method_ids
 
     for mid in method_ids():
         print(f"{mid:<10} {describe(mid)}")

@@ -6,7 +6,7 @@ from pathlib import Path
 
 from renderer.errors import PgiError
 from renderer.progressive import available_cores, check_threads
-from renderer.scene.loader import scene_content_digest, scene_sources
+from renderer.scene.sources import scene_content_digest, scene_sources
 
 
 def _relative(path):
@@ -42,7 +42,7 @@ def _scene_digest(scene):
 
 
 def scene_digest(wildcards):
-    """What the scene renders (renderer.scene.loader.scene_content_digest): renders and
+    """What the scene renders (renderer.scene.sources.scene_content_digest): renders and
     references record it as a param, so an edit that changes it reruns them, and a comment
     or a new description does not. Computed once per scene."""
     return _scene_digest(wildcards.scene)

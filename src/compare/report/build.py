@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from renderer.imageio import read_exr, read_json
-from renderer.scene.loader import check_yaml_file
+from renderer.scene.yaml_dialect import check_yaml_file
 
 from .. import tables as T
 from ..metrics import EPS, relmse_map
@@ -182,7 +182,7 @@ def _methods_note(methods: list[str], bases: dict[str, str]) -> str:
 def _why_absent(method: str) -> str:
     """Why an expected winner has no results: left out of the study, or not a method yet
     (the brief's bdpt, vpl, vrl and vbl)."""
-    from renderer.methods import NOT_YET_IMPLEMENTED
+    from renderer.known_methods import NOT_YET_IMPLEMENTED
 
     return "not implemented yet" if method in NOT_YET_IMPLEMENTED else "not in this study"
 

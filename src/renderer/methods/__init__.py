@@ -1,4 +1,5 @@
-"""Registry of progressive methods: id -> class. Each method lives in its own module."""
+"""Registry of progressive methods: id -> class. Each method lives in its own module; the ids
+are listed in renderer.known_methods."""
 
 from __future__ import annotations
 
@@ -9,7 +10,9 @@ from typing import Protocol
 import numpy as np
 
 from ..errors import PgiError
+from ..known_methods import IMPLEMENTED
 from ..scene.model import Scene
+from ..scene.yaml_dialect import parse_yaml_value
 
 
 class Method(Protocol):
@@ -29,39 +32,6 @@ class Method(Protocol):
     def stats(self) -> dict: ...
 
 
-# id -> (module, class name, one-line description); modules import lazily so that
-# listing methods or rendering with one does not load the others' dependencies.
-_METHODS: dict[str, tuple[str, str, str]] = {
-    "pt": ("pt", "PathTracing", "volumetric path tracing, next-event estimation and MIS"),
-    "lt": ("lt", "LightTracing", "light tracing: light paths connected to the camera"),
-    "pm": (
-        "pm",
-        "PhotonMapping",
-        "photon mapping with volume photons and the beam radiance estimate (fixed radius)",
-    ),
-    "sppm": (
-        "sppm",
-        "StochasticProgressivePhotonMapping",
-        "stochastic progressive photon mapping, surfaces and media (Knaus-Zwicker radii)",
-    ),
-    "ppb": (
-        "ppb",
-        "ProgressivePhotonBeams",
-        "progressive photon beams (beam x beam 1D) in media, photons on surfaces",
-    ),
-    "mitsuba": ("mitsuba", "MitsubaVolpath", "Mitsuba 3 volpath at the same budget"),
-}
-
-# Methods of the study's method table (docs/methods.md) that pgi does not implement yet.
-# Scenes may name them among the methods expected to win; nothing can render with them.
-NOT_YET_IMPLEMENTED: dict[str, str] = {
-    "bdpt": "bidirectional path tracing in media",
-    "vpl": "virtual point lights",
-    "vrl": "virtual ray lights",
-    "vbl": "progressive virtual beam lights",
-}
-
-
 # Scene settings a method does not read: overriding one would render the method unchanged
 # under another name (a study variant, say), so a render refuses it. Per method: who renders
 # it (named in the message: `pgi reference` is Mitsuba too) and the settings.
@@ -73,8 +43,6 @@ UNREAD_SETTINGS: dict[str, tuple[str, tuple[str, ...]]] = {
 def check_overrides(method_id: str, overrides: list[str] | tuple[str, ...]) -> None:
     """Refuses `key=value` scene overrides that the method would ignore, also when given
     as part of a mapping (`integrator={estimator: delta}`)."""
-    from ..scene.loader import parse_yaml_value
-
     if method_id not in UNREAD_SETTINGS:
         return
     reader, settings = UNREAD_SETTINGS[method_id]
@@ -104,15 +72,17 @@ def check_method_parameters(method_id: str, names: Iterable[str]) -> None:
 
 
 def method_ids() -> list[str]:
-    return list(_METHODS)
+    return list(IMPLEMENTED)
 
 
 def describe(method_id: str) -> str:
-    return _METHODS[method_id][2]
+    return IMPLEMENTED[method_id][2]
 
 
 def get_method(method_id: str) -> type[Method]:
-    if method_id not in _METHODS:
+    if method_id not in IMPLEMENTED:
         raise PgiError(f"unknown method {method_id!r}; expected one of: {', '.join(method_ids())}")
-    module, cls, _ = _METHODS[method_id]
+    # The method's module imports only now: listing methods or rendering with one does not
+    # load the others' dependencies.
+    module, cls, _ = IMPLEMENTED[method_id]
     return getattr(import_module(f"{__name__}.{module}"), cls)
