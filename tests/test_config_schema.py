@@ -474,8 +474,8 @@ def test_config_text_that_yaml_11_reads_as_a_number_or_boolean_is_refused(tmp_pa
     [
         ({"set": ["method.spp_per_wave=2"]}, r"^set: method.spp_per_wave: method parameters"),
         (
-            {"scenes": [{"name": "cbox", "set": ["method.photons=64"]}]},
-            r"^scenes: 'cbox': set: method.photons: method parameters .* use method_args",
+            {"scenes": [{"name": "cbox", "set": ["method.light_paths=64"]}]},
+            r"^scenes: 'cbox': set: method.light_paths: method parameters .* use method_args",
         ),
     ],
 )  # fmt: skip

@@ -74,3 +74,24 @@ def test_renderer_modules_import_no_circle():
 
     for name in sorted(graph):
         visit(name, [])
+
+
+def test_the_native_interface_has_a_typed_stub():
+    """The build writes a stub of renderer._core beside the module (CMakeLists.txt), so editors
+    and readers see the native interface: every class and function the module has, and each
+    kernel with the passes of the iteration protocol (cpp/passes.h), typed and documented."""
+    from renderer import _core
+
+    text = (Path(_core.__file__).with_name("_core.pyi")).read_text()
+    public = [name for name in dir(_core) if not name.startswith("_")]
+    for name in public:
+        kind = "class" if isinstance(getattr(_core, name), type) else "def"
+        assert f"{kind} {name}" in text, f"{name} is not in the stub: rebuild (pip install -e .)"
+    kernels = ["PathTracing", "LightPaths", "LightTracing", "PhotonMapping"]
+    kernels.append("ProgressivePhotonBeams")
+    for kernel in kernels:
+        body = text.split(f"class {kernel}:")[1].split("\nclass ")[0]
+        assert "def begin(self, iteration: int) -> None:" in body, kernel
+        assert "def end(self) -> None:" in body and "def lane(self, index: int)" in body, kernel
+    assert text.count("def next_rays(self, o: Annotated[NDArray[numpy.float32]") >= len(kernels)
+    assert "Writes the rays of the paths in flight" in text

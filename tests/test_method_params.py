@@ -21,23 +21,25 @@ BAD = [
     ("pt", "slots_per_lane", 2**21, "an integer >= 1 and <= 1048576"),
     ("lt", "light_paths", [1, 2], INT_1),
     ("lt", "max_records", -1, INT_1),
-    ("pm", "photons", True, INT_1),
-    ("pm", "radius", float("nan"), "a number >= "),  # 1e-9 of the scene's size
-    ("pm", "radius", 1e-160, "a number >= "),  # 1 / (pi r^2) overflowed into NaN samples
-    ("pm", "radius_scale", "big", "a number >= 1e-09"),
-    ("pm", "radius_scale", 1e-160, "a number >= 1e-09"),
-    ("ppb", "radius", 1e-160, "a number >= 1e-09"),
+    ("pm", "light_paths", True, INT_1),
+    ("pm", "surface_radius_world", float("nan"), "a number >= "),  # 1e-9 of the scene's size
+    ("pm", "volume_radius_world", 1e-160, "a number >= "),  # 1/(pi r^2) overflowed into NaN
+    ("pm", "surface_radius_relative", "big", "a number >= 1e-09"),
+    ("pm", "volume_radius_relative", 1e-160, "a number >= 1e-09"),
+    ("ppb", "beam_radius_relative", 1e-160, "a number >= 1e-09"),
     # wider than the scene: every photon everywhere, 20x slower (found by a review)
-    ("pm", "radius", 1e30, "a number >= 1.73205e-09 and <= 3.4641"),  # cbox: radius sqrt(3)
-    ("pm", "radius_scale", 3, "a number >= 1e-09 and <= 2"),
-    ("ppb", "radius", 2.5, "a number >= 1e-09 and <= 2"),
-    ("ppb", "surface_radius", 2.5, "a number >= 0 and <= 2"),
-    ("ppb", "surface_radius", 1e-160, "0 (path-traced surfaces) or >= 1e-09"),
-    ("sppm", "alpha", 1.0, "a number > 0 and < 1"),
+    ("pm", "surface_radius_world", 1e30, "a number >= 1.73205e-09 and <= 3.4641"),  # cbox: sqrt 3
+    ("pm", "surface_radius_relative", 3, "a number >= 1e-09 and <= 2"),
+    ("ppb", "beam_radius_relative", 2.5, "a number >= 1e-09 and <= 2"),
+    ("ppb", "beam_radius_world", 1e-12, "a number >= 1.73205e-09 and <= 3.4641"),
+    ("ppb", "surface_radius_relative", 2.5, "a number >= 0 and <= 2"),
+    ("ppb", "surface_radius_relative", 1e-160, "0 (path-traced surfaces) or >= 1e-09"),
+    ("ppb", "surface_radius_world", 1e-160, "0 (path-traced surfaces) or >= 1.73205e-09"),
+    ("sppm", "surface_alpha", 1.0, "a number > 0 and < 1"),
     ("sppm", "volume_alpha", None, "a number > 0 and < 1"),
     ("ppb", "light_paths", [1, 2], INT_1),
-    ("ppb", "alpha", 1.5, "a number > 0 and <= 1"),
-    ("ppb", "surface_radius", -0.1, "a number >= 0"),
+    ("ppb", "beam_alpha", 1.5, "a number > 0 and <= 1"),
+    ("ppb", "surface_radius_relative", -0.1, "a number >= 0"),
     ("ppb", "gather_bounces", -1, INT_0),
     ("mitsuba", "spp_per_iteration", "4", INT_1),
 ]
@@ -65,26 +67,68 @@ def test_a_bad_value_is_quoted_as_yaml_writes_it_and_briefly():
 @pytest.mark.parametrize(
     "method, params, message",
     [
-        ("ppb", {"gather_bounces": 1}, "gather_bounces has no effect unless surface_radius=0"),
-        ("ppb", {"surface_radius": 0, "surface_alpha": 0.5}, "surface_alpha has no effect with"),
+        ("ppb", {"gather_bounces": 1}, "gather_bounces has no effect unless with path-traced"),
+        (
+            "ppb",
+            {"surface_radius_relative": 0, "surface_alpha": 0.5},
+            "surface_alpha has no effect with path-traced surfaces",
+        ),
         (
             "pm",
-            {"radius": 0.1, "volume_radius": 0.1, "radius_scale": 0.02},
-            "radius_scale has no effect when radius and volume_radius are both given",
+            {"surface_radius_world": 0.1, "surface_radius_relative": 0.02},
+            "give surface_radius_world or surface_radius_relative, not both",
         ),
-        ("sppm", {"radius": 0.1, "volume_radius": 0.1, "radius_scale": 0.02}, "radius_scale"),
+        (
+            "sppm",
+            {"radius_scale": 0.02, "volume_radius_relative": 0.1},
+            "radius_scale is an old name of volume_radius_relative: give only one",
+        ),
     ],
 )
-def test_a_parameter_without_effect_is_an_error(method, params, message):
+def test_a_parameter_without_effect_or_given_twice_is_an_error(method, params, message):
     with pytest.raises(PgiError, match=f"^method {method}: {message}"):
         get_method(method)(load_small("cbox", 4, 4), seed=0, threads=1, params=params)
 
 
 def test_sppm_takes_both_radii_without_its_default_scale():
     sppm = get_method("sppm")(
-        load_small("cbox", 4, 4), seed=0, threads=1, params={"radius": 0.1, "volume_radius": 0.2}
+        load_small("cbox", 4, 4),
+        seed=0,
+        threads=1,
+        params={"surface_radius_world": 0.1, "volume_radius_world": 0.2},
     )
     assert (sppm.radius, sppm.volume_radius) == (0.1, 0.2)
+
+
+@pytest.mark.parametrize(
+    "method, old, value, new",
+    [
+        ("pm", "photons", 64, {"light_paths": 64}),
+        ("pm", "radius", 0.1, {"surface_radius_world": 0.1}),
+        ("sppm", "volume_radius", 0.1, {"volume_radius_world": 0.1}),
+        (
+            "pm",
+            "radius_scale",
+            0.03,
+            {"surface_radius_relative": 0.03, "volume_radius_relative": 0.03},
+        ),
+        ("sppm", "alpha", 0.5, {"surface_alpha": 0.5, "volume_alpha": 0.5}),
+        ("ppb", "radius", 0.02, {"beam_radius_relative": 0.02}),
+        ("ppb", "alpha", 0.7, {"beam_alpha": 0.7}),
+        ("ppb", "surface_radius", 0.03, {"surface_radius_relative": 0.03}),
+        ("ppb", "piece_length", 0.3, {"piece_length_relative": 0.3}),
+    ],
+)
+def test_old_parameter_names_still_work_with_a_warning(method, old, value, new, capsys):
+    """Renamed parameters (one vocabulary: radii say whether they are world units or relative
+    to the scene, light paths are light paths): the old name sets the new ones and says so."""
+    m = get_method(method)(load_small("cbox", 4, 4), seed=0, threads=1, params={old: value})
+    for key, v in new.items():
+        assert m.method_params[key] == pytest.approx(v), key
+    assert old not in m.method_params
+    err = capsys.readouterr().err
+    assert f"pgi: warning: method {method}: {old} is an old name: use " in err, err
+    assert all(f"{key}=" in err for key in new if key != "volume_alpha"), err
 
 
 @pytest.mark.parametrize(
@@ -92,7 +136,7 @@ def test_sppm_takes_both_radii_without_its_default_scale():
     [
         ("pt", "spp_per_wave", 1_000_000),  # 256 million paths at 64 bytes: 15 GiB
         ("pm", "spp_per_iteration", 100_000),
-        ("pm", "photons", 10**8),
+        ("pm", "light_paths", 10**8),
         ("sppm", "spp_per_iteration", 100_000),
         ("ppb", "light_paths", 10**8),
         ("ppb", "spp_per_iteration", 100_000),
@@ -118,22 +162,23 @@ def test_every_parameter_used_is_recorded_with_its_value():
     """The sidecar's `method_params`: given and default values alike (its `params` holds only
     those given), and none whose default plays no part (a review)."""
     scene = load_small("cbox", 4, 4)
-    pm = get_method("pm")(scene, seed=0, threads=1, params={"photons": 100})
-    size = pm.native.core.scene_radius
+    pm = get_method("pm")(scene, seed=0, threads=1, params={"light_paths": 100})
     assert pm.method_params == {
-        "photons": 100,
+        "light_paths": 100,
         "spp_per_iteration": 1,
         "max_records": 8388608,
-        "radius_scale": 0.02,
-        "radius": pytest.approx(0.02 * size),
-        "volume_radius": pytest.approx(0.02 * size),
+        "surface_radius_relative": 0.02,
+        "volume_radius_relative": 0.02,
     }
-    both = get_method("pm")(scene, seed=0, threads=1, params={"radius": 0.1, "volume_radius": 0.2})
-    assert "radius_scale" not in both.method_params and both.method_params["volume_radius"] == 0.2
-    sppm = get_method("sppm")(scene, seed=0, threads=1, params={"alpha": 0.5})
-    assert sppm.method_params["alpha"] == sppm.method_params["volume_alpha"] == 0.5
-    assert "photons" in sppm.method_params
-    ppb = get_method("ppb")(scene, seed=0, threads=1, params={"surface_radius": 0})
+    both = get_method("pm")(
+        scene, seed=0, threads=1, params={"surface_radius_world": 0.1, "volume_radius_world": 0.2}
+    )
+    assert "surface_radius_relative" not in both.method_params
+    assert both.method_params["volume_radius_world"] == 0.2
+    sppm = get_method("sppm")(scene, seed=0, threads=1, params={"surface_alpha": 0.5})
+    assert sppm.method_params["surface_alpha"] == sppm.method_params["volume_alpha"] == 0.5
+    assert "light_paths" in sppm.method_params
+    ppb = get_method("ppb")(scene, seed=0, threads=1, params={"surface_radius_relative": 0})
     assert "gather_bounces" in ppb.method_params and "surface_alpha" not in ppb.method_params
 
 

@@ -74,8 +74,8 @@ ITERATIONS = 32
 PARAMS = {
     "pt": {"spp_per_wave": 128},
     "lt": {"light_paths": 1 << 14},
-    "pm": {"photons": 256, "spp_per_iteration": 128},
-    "sppm": {"photons": 256, "spp_per_iteration": 128},
+    "pm": {"light_paths": 256, "spp_per_iteration": 128},
+    "sppm": {"light_paths": 256, "spp_per_iteration": 128},
     "ppb": {"light_paths": 256, "spp_per_iteration": 256},
 }
 
@@ -113,8 +113,8 @@ CUTS = [
 CUT_PARAMS = {
     "pt": ({"spp_per_wave": 16}, 512),
     "lt": ({"light_paths": 1 << 14}, 32),
-    "pm": ({"photons": 1 << 14, "spp_per_iteration": 8}, 64),
-    "sppm": ({"photons": 1 << 14, "spp_per_iteration": 8}, 64),
+    "pm": ({"light_paths": 1 << 14, "spp_per_iteration": 8}, 64),
+    "sppm": ({"light_paths": 1 << 14, "spp_per_iteration": 8}, 64),
     "ppb": ({"light_paths": 1 << 12, "spp_per_iteration": 8}, 128),
 }
 CUT_LEVEL = stats.sidak(stats.ALPHA, len(CUT_PARAMS) * 4)  # blocks and mean, chi-square and |z|

@@ -61,10 +61,10 @@ def test_bias_shrinks_with_the_radius(ref):
             scene,
             ITERATIONS_FOR_BIAS,
             seed=1,
-            photons=1 << 14,
+            light_paths=1 << 14,
             spp_per_iteration=16,
-            radius=r,
-            volume_radius=r,
+            surface_radius_world=r,
+            volume_radius_world=r,
         )
         rel = runs[r].mean[mask].mean() / reference_estimate.mean[mask].mean() - 1
         print(f"pm radius {r}: relative bias of the mean {rel:+.2%}")
@@ -154,10 +154,10 @@ def test_small_radius_agrees_with_pt_on_average(
         load_small(name, RES, RES, overrides),
         64,
         seed=2,
-        photons=photons,
+        light_paths=photons,
         spp_per_iteration=16,
-        radius=radius,
-        volume_radius=radius,
+        surface_radius_world=radius,
+        volume_radius_world=radius,
     )
     pt = masked_mean(reference_estimate, mask)
     result = agreement(masked_mean(pm, mask), pt)
@@ -178,7 +178,7 @@ def assert_losses_fail(est: Estimate, pt: Estimate, mask: np.ndarray, name: str)
 
 def _render(name: str, threads: int, cls=PhotonMapping, **params) -> np.ndarray:
     method = cls(
-        load_small(name, 16, 16), seed=4, threads=threads, params={"photons": 4096, **params}
+        load_small(name, 16, 16), seed=4, threads=threads, params={"light_paths": 4096, **params}
     )
     for i in range(2):
         method.run_iteration(i)
@@ -197,11 +197,11 @@ def test_stats_report_the_radii_and_the_bias():
         load_small("cbox-fog", 8, 8),
         seed=0,
         threads=1,
-        params={"photons": 1024, "radius": 0.05, "volume_radius": 0.07},
+        params={"light_paths": 1024, "surface_radius_world": 0.05, "volume_radius_world": 0.07},
     )
     method.run_iteration(0)
     s = method.stats()
-    assert s["surface_radius"] == 0.05 and s["volume_radius"] == 0.07
+    assert s["surface_radius_world"] == 0.05 and s["volume_radius_world"] == 0.07
     assert s["consistent"] is False
     assert s["surface_photons"] > 0 and s["volume_photons"] > 0
     assert s["iterations"] == 1 and s["spp"] == 1 and s["nonfinite"] == 0
@@ -216,7 +216,9 @@ def test_the_gathering_kernel_refuses_a_radius_of_zero(radius, which):
     filling the image with NaN."""
     from renderer import _core
 
-    method = PhotonMapping(load_small("cbox-fog", 8, 8), seed=0, threads=1, params={"photons": 8})
+    method = PhotonMapping(
+        load_small("cbox-fog", 8, 8), seed=0, threads=1, params={"light_paths": 8}
+    )
     radii = {"surface": (radius, 0.1), "volume": (0.1, radius)}[which]
     with pytest.raises(ValueError, match="radii must be positive"):
         _core.PhotonMapping(
@@ -230,18 +232,18 @@ def test_photon_memory_bound_is_an_error():
         load_small("cbox-fog", 8, 8),
         seed=0,
         threads=1,
-        params={"photons": 4096, "max_records": 2000},
+        params={"light_paths": 4096, "max_records": 2000},
     )
-    with pytest.raises(PgiError, match=r"exceed the configured bound .*method\.photons "):
+    with pytest.raises(PgiError, match=r"exceed the configured bound .*method\.light_paths "):
         method.run_iteration(0)
 
 
 def test_bad_parameters_are_clear_errors():
     scene = load_small("cbox", 8, 8)
     with pytest.raises(PgiError, match="unknown parameter"):
-        PhotonMapping(scene, seed=0, threads=1, params={"alpha": 0.5})
-    with pytest.raises(PgiError, match="radius must be a number >= "):
-        PhotonMapping(scene, seed=0, threads=1, params={"radius": 0})
+        PhotonMapping(scene, seed=0, threads=1, params={"surface_alpha": 0.5})
+    with pytest.raises(PgiError, match="surface_radius_world must be a number >= "):
+        PhotonMapping(scene, seed=0, threads=1, params={"surface_radius_world": 0})
 
 
 def test_specular_chains_are_gathered_through():
@@ -267,10 +269,10 @@ def test_specular_chains_are_gathered_through():
         scene,
         32,
         seed=1,
-        photons=1 << 15,
+        light_paths=1 << 15,
         spp_per_iteration=16,
-        radius=0.02,
-        volume_radius=0.02,
+        surface_radius_world=0.02,
+        volume_radius_world=0.02,
     )
     lt = ours(LightTracing, scene, 8, light_paths=1 << 15)
     limit = agreement(masked_mean(pm, mask), masked_mean(pt, mask)).z_limit

@@ -28,7 +28,7 @@ r_i = r_1 i^(alpha - 1), so its error is variance plus a shrinking bias. The tes
   an unshrunk control;
 
 - compare the image mean of two variants with pt's the same way: a density grid (cbox-grid:
-  short query rays and gray delta tracking), path-traced surfaces (surface_radius=0,
+  short query rays and gray delta tracking), path-traced surfaces (surface_radius_relative=0,
   gather_bounces=1) and a sun whose light paths enter the fog through null windows
   (crepuscular).
 
@@ -131,8 +131,8 @@ def test_error_falls_at_the_expected_rate(runs, reference):
 def test_unknown_and_bad_parameters_are_errors(scene):
     with pytest.raises(PgiError, match="unknown parameter"):
         ProgressivePhotonBeams(scene, seed=0, threads=1, params={"radious": 0.1})
-    with pytest.raises(PgiError, match="alpha"):
-        ProgressivePhotonBeams(scene, seed=0, threads=1, params={"alpha": 1.5})
+    with pytest.raises(PgiError, match="beam_alpha"):
+        ProgressivePhotonBeams(scene, seed=0, threads=1, params={"beam_alpha": 1.5})
 
 
 # (scene, ppb parameters, scene overrides, ppb iterations, pt iterations)
@@ -141,8 +141,9 @@ VARIANTS = {
     "grid-medium": ("cbox-grid", {"spp_per_iteration": 16}, (), 128, 32),
     # path-traced surfaces
     "path-traced-surfaces": (
-        "cbox-fog", {"surface_radius": 0.0, "gather_bounces": 1, "spp_per_iteration": 16}, (),
-        128, 32,
+        "cbox-fog",
+        {"surface_radius_relative": 0.0, "gather_bounces": 1, "spp_per_iteration": 16},
+        (), 128, 32,
     ),
     # a directional light entering the fog through null windows; its paths start in
     # vacuum (when they started in the fog, ppb was 5-7 % too dark here)
@@ -160,7 +161,7 @@ VARIANTS = {
     # event too deep was 3.4-4.5 % too bright here, which pt's noise at 32 iterations
     # nearly hid (|z| 4.9 against a limit of 4.15; 5.7 at 128)
     "path-traced-surfaces-max-depth-3": (
-        "cbox-fog", {"surface_radius": 0.0, "gather_bounces": 1, "spp_per_iteration": 16},
+        "cbox-fog", {"surface_radius_relative": 0.0, "gather_bounces": 1, "spp_per_iteration": 16},
         ("integrator.max_depth=3",), 128, 128,
     ),
 }  # fmt: skip
@@ -209,8 +210,8 @@ def test_light_paths_escaping_an_unbounded_medium_are_counted(tmp_path):
 @pytest.mark.parametrize(
     "key, alpha_key, dimension, common",
     [
-        ("radius", "alpha", 1, {"surface_radius": 0.0}),  # beams, path-traced surfaces
-        ("surface_radius", "surface_alpha", 2, {"radius": 0.02, "alpha": 1.0}),  # photons
+        ("beam_radius", "beam_alpha", 1, {"surface_radius_relative": 0.0}),  # path-traced surfaces
+        ("surface_radius", "surface_alpha", 2, {"beam_radius_relative": 0.02, "beam_alpha": 1.0}),
     ],
     ids=["beams", "surface-photons"],
 )
@@ -224,11 +225,11 @@ def test_each_iteration_gathers_with_its_scheduled_radius(key, alpha_key, dimens
     r1, alpha = 0.05, 0.6
 
     def ppb(radius: float, a: float) -> ProgressivePhotonBeams:
-        params = {**common, key: radius, alpha_key: a}
+        params = {**common, f"{key}_relative": radius, alpha_key: a}
         return ProgressivePhotonBeams(scene, seed=2, threads=2, params=params)
 
     scheduled = ppb(r1, alpha)
-    world = f"{'beam_radius' if key == 'radius' else key}_world"
+    world = f"{key}_world"
     previous = np.zeros_like(scheduled.image())
     for i in range(3):
         scheduled.run_iteration(i)
@@ -267,7 +268,7 @@ def test_sidecar_radii_are_world_units_and_slopes_follow_the_kernels():
     """The parameters are relative to the scene radius; the sidecar's radii are world units."""
     scene = load_small("cbox-fog", 8, 8)
     method = ProgressivePhotonBeams(
-        scene, seed=0, threads=1, params={"light_paths": 64, "radius": 0.05}
+        scene, seed=0, threads=1, params={"light_paths": 64, "beam_radius_relative": 0.05}
     )
     method.run_iteration(0)
     s = method.stats()
@@ -279,6 +280,9 @@ def test_sidecar_radii_are_world_units_and_slopes_follow_the_kernels():
     assert s["expected_mse_slope"] == pytest.approx(-2 / 3)
     assert s["expected_mse_slope_at_edges"] == pytest.approx(-1 / 3)
     traced = ProgressivePhotonBeams(
-        scene, seed=0, threads=1, params={"light_paths": 64, "surface_radius": 0, "alpha": 1}
+        scene,
+        seed=0,
+        threads=1,
+        params={"light_paths": 64, "surface_radius_relative": 0, "beam_alpha": 1},
     ).stats()
     assert traced["consistent"] is False and traced["expected_mse_slope"] == 0

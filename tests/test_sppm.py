@@ -53,7 +53,7 @@ def error_curve(cls, ref, seed: int, **params) -> tuple[np.ndarray, np.ndarray]:
         load_small("cbox-fog", RES, RES),
         seed=seed,
         threads=2,
-        params={"photons": 4096, "spp_per_iteration": 16, **params},
+        params={"light_paths": 4096, "spp_per_iteration": 16, **params},
     )
     mse = []
 
@@ -102,7 +102,7 @@ def test_convergence_slope_matches_theory(sppm_curves):
     assert fit.consistent_with(*THEORY, ALPHA), f"{fit}: {fit.interval(ALPHA)} misses {THEORY}"
 
 
-WIDE = {"radius": 0.25, "volume_radius": 0.25}
+WIDE = {"surface_radius_world": 0.25, "volume_radius_world": 0.25}
 
 
 @pytest.fixture(scope="module")
@@ -147,13 +147,18 @@ def test_radii_follow_the_schedule():
         load_small("cbox", 8, 8),
         seed=0,
         threads=1,
-        params={"photons": 256, "radius": 0.1, "volume_radius": 0.2, "alpha": 0.5},
+        params={
+            "light_paths": 256,
+            "surface_radius_world": 0.1,
+            "volume_radius_world": 0.2,
+            "surface_alpha": 0.5,
+        },
     )
     for i in range(4):
         method.run_iteration(i)
     s = method.stats()
-    assert s["surface_radius"] == pytest.approx(0.1 * 4 ** (-0.5 / 2))
-    assert s["volume_radius"] == pytest.approx(0.2 * 4 ** (-0.5 / 2))
+    assert s["surface_radius_world"] == pytest.approx(0.1 * 4 ** (-0.5 / 2))
+    assert s["volume_radius_world"] == pytest.approx(0.2 * 4 ** (-0.5 / 2))
     assert s["consistent"] is True and s["expected_mse_slope"] == pytest.approx(-0.5)
     assert s["expected_mse_slope_at_edges"] == pytest.approx(-0.5)  # -min(0.5, 2 x 0.5 / 2)
 
@@ -162,12 +167,12 @@ def test_the_slower_kernel_sets_the_expected_slope():
     """alpha 2/3 on surfaces (-2/3 where smooth, -1/3 at edges) and volume_alpha 0.9 in media
     (-0.2 where smooth, -0.1 at edges): media converge slower and set both rates."""
     s = StochasticProgressivePhotonMapping(
-        load_small("cbox", 8, 8), seed=0, threads=1, params={"photons": 64, "volume_alpha": 0.9}
+        load_small("cbox", 8, 8), seed=0, threads=1, params={"light_paths": 64, "volume_alpha": 0.9}
     ).stats()
     assert s["expected_mse_slope"] == pytest.approx(-0.2)
     assert s["expected_mse_slope_at_edges"] == pytest.approx(-0.1)
     s = StochasticProgressivePhotonMapping(
-        load_small("cbox", 8, 8), seed=0, threads=1, params={"photons": 64}
+        load_small("cbox", 8, 8), seed=0, threads=1, params={"light_paths": 64}
     ).stats()
     assert s["expected_mse_slope"] == pytest.approx(-2 / 3)
     assert s["expected_mse_slope_at_edges"] == pytest.approx(-1 / 3)
@@ -179,10 +184,11 @@ def test_each_iteration_gathers_with_its_scheduled_radii():
     each radius with its own alpha. A schedule that stopped shrinking, radii that never reached
     the kernels, or a volume radius on the surface's schedule differ here."""
     scene = load_small("cbox-fog", 8, 8)
-    common = {"photons": 1024, "spp_per_iteration": 4}
+    common = {"light_paths": 1024, "spp_per_iteration": 4}
     sppm = StochasticProgressivePhotonMapping(
         scene, seed=5, threads=2,
-        params={**common, "radius": 0.2, "volume_radius": 0.3, "alpha": 0.5, "volume_alpha": 0.8},
+        params={**common, "surface_radius_world": 0.2, "volume_radius_world": 0.3,
+                "surface_alpha": 0.5, "volume_alpha": 0.8},
     )  # fmt: skip
     previous = np.zeros_like(sppm.image())
     for i in range(4):
@@ -192,13 +198,16 @@ def test_each_iteration_gathers_with_its_scheduled_radii():
         surface, volume = 0.2 * (i + 1) ** (-0.5 / 2), 0.3 * (i + 1) ** (-0.2 / 2)
         pm = PhotonMapping(
             scene, seed=5, threads=2,
-            params={**common, "radius": surface, "volume_radius": volume},
+            params={**common, "surface_radius_world": surface, "volume_radius_world": volume},
         )  # fmt: skip
         pm.run_iteration(i)
         assert np.allclose(own, pm.image(), rtol=1e-9, atol=1e-12), i
         if i > 0:  # the radius matters: the unshrunk radius gives another image
             unshrunk = PhotonMapping(
-                scene, seed=5, threads=2, params={**common, "radius": 0.2, "volume_radius": 0.3}
+                scene,
+                seed=5,
+                threads=2,
+                params={**common, "surface_radius_world": 0.2, "volume_radius_world": 0.3},
             )
             unshrunk.run_iteration(i)
             assert not np.allclose(own, unshrunk.image(), rtol=1e-3), i
@@ -208,7 +217,7 @@ def test_same_seed_same_image_whatever_the_thread_count():
     images = []
     for threads in (1, 2):
         method = StochasticProgressivePhotonMapping(
-            load_small("cbox-glass", 16, 16), seed=3, threads=threads, params={"photons": 4096}
+            load_small("cbox-glass", 16, 16), seed=3, threads=threads, params={"light_paths": 4096}
         )
         for i in range(3):
             method.run_iteration(i)
@@ -219,5 +228,5 @@ def test_same_seed_same_image_whatever_the_thread_count():
 def test_alpha_must_lie_in_the_open_interval():
     with pytest.raises(PgiError, match="alpha"):
         StochasticProgressivePhotonMapping(
-            load_small("cbox", 8, 8), seed=0, threads=1, params={"alpha": 1.0}
+            load_small("cbox", 8, 8), seed=0, threads=1, params={"surface_alpha": 1.0}
         )

@@ -494,7 +494,7 @@ SHIFT = 20.0
 TRANSLATED = {
     "pt": {"spp_per_wave": 16},
     "lt": {"light_paths": 1 << 14},
-    "pm": {"photons": 1 << 14, "spp_per_iteration": 8},
+    "pm": {"light_paths": 1 << 14, "spp_per_iteration": 8},
 }
 ITERATIONS = {"pt": 512, "lt": 32, "pm": 128}
 
@@ -671,8 +671,8 @@ SHIPPED = sorted(p.parent.name for p in SCENES.glob("*/scene.yaml"))
 SWEEP = {
     "pt": {"spp_per_wave": 16},
     "lt": {"light_paths": 1 << 14},
-    "pm": {"photons": 1 << 14, "spp_per_iteration": 8},
-    "sppm": {"photons": 1 << 14, "spp_per_iteration": 8},
+    "pm": {"light_paths": 1 << 14, "spp_per_iteration": 8},
+    "sppm": {"light_paths": 1 << 14, "spp_per_iteration": 8},
     "ppb": {"light_paths": 1 << 12, "spp_per_iteration": 8},
 }
 

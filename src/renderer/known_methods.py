@@ -28,6 +28,11 @@ IMPLEMENTED: dict[str, tuple[str, str, str]] = {
     "mitsuba": ("mitsuba", "MitsubaVolpath", "Mitsuba 3 volpath at the same budget"),
 }
 
+# Methods that are not the study's: rendered by name (tests, docs), never listed or studied.
+EXAMPLES: dict[str, tuple[str, str, str]] = {
+    "direct": ("direct", "DirectLighting", "direct lighting at the first surface (an example)"),
+}
+
 # Methods of the study's method table (docs/methods.md) that pgi does not implement yet.
 # Scenes may name them among the methods expected to win; nothing can render with them.
 NOT_YET_IMPLEMENTED: dict[str, str] = {

@@ -127,28 +127,37 @@ void bind_lane_passes(nb::class_<Lane> &cls) {
             [](Lane &l, Array<float> o, Array<float> d, Array<float> t) {
                 RayBuffers b = ray_buffers(o, d, t);
                 return released([&] { return l.next_rays(b); });
-            }, "o"_a.noconvert(), "d"_a.noconvert(), "t"_a.noconvert())
+            }, "o"_a.noconvert(), "d"_a.noconvert(), "t"_a.noconvert(),
+            "Writes the rays of the paths in flight (the first call of an iteration: their first "
+            "rays) into origins, directions and tmax; returns their count (0: the lane is done).")
         .def("shade",
              [](Lane &l, Array<float> tfar, Array<int32_t> prim, Array<float> u, Array<float> v) {
                  Hits h = hits_of(tfar, prim, u, v);
                  return released([&] { return l.shade(h); });
-             }, "tfar"_a, "prim"_a, "u"_a, "v"_a)
+             }, "tfar"_a, "prim"_a, "u"_a, "v"_a,
+             "What each ray of the last next_rays found (Embree's closest hits: distance, "
+             "primitive or -1, barycentrics); returns the number of shadow rays it queued.")
         .def("shadow_rays",
              [](Lane &l, Array<float> o, Array<float> d, Array<float> t) {
                  RayBuffers b = ray_buffers(o, d, t);
                  return released([&] { return l.shadow_rays(b); });
-             }, "o"_a.noconvert(), "d"_a.noconvert(), "t"_a.noconvert())
+             }, "o"_a.noconvert(), "d"_a.noconvert(), "t"_a.noconvert(),
+             "Writes the next segment of every shadow ray still travelling; returns their count.")
         .def("resolve_shadows",
              [](Lane &l, Array<float> tfar, Array<int32_t> prim) {
                  check_len(tfar.shape(0), prim.shape(0), "tfar");
                  Hits h{tfar.data(), nullptr, nullptr, prim.data(), prim.shape(0)};
                  released([&] { l.resolve_shadows(h); });
-             }, "tfar"_a, "prim"_a)
+             }, "tfar"_a, "prim"_a,
+             "Advances the shadow rays of the last shadow_rays by their closest hits: blocked, "
+             "arrived (its value delivered) or through a null boundary (another segment).")
         .def("resolve_occlusion",
              [](Lane &l, Array<int32_t> blocked) {
                  Hits h{nullptr, nullptr, nullptr, blocked.data(), blocked.shape(0), true};
                  released([&] { l.resolve_shadows(h); });
-             }, "blocked"_a)
+             }, "blocked"_a,
+             "As resolve_shadows, from an occlusion query (blocked >= 0 where something blocks); "
+             "only where the scene has no null boundary (shadows_any_hit).")
         .def_prop_ro("capacity", [](const Lane &l) { return l.capacity(); })
         .def_prop_ro("shadow_slots", [](const Lane &l) { return l.shadow_slots(); })
         .def_prop_ro("shadows_any_hit", [](const Lane &l) { return !l.scene().has_null_surfaces; });
@@ -173,8 +182,11 @@ nb::class_<Kernel> bind_kernel(nb::module_ &m, const char *name, const char *lan
         nb::class_<Lane> lane(m, lane_name);
         bind_lane_passes(lane);
     }
-    cls.def("begin", [](Kernel &k, int64_t iteration) { released([&] { k.begin(iteration); }); }, "iteration"_a)
-        .def("end", [](Kernel &k) { released([&] { k.end(); }); })
+    cls.def("begin", [](Kernel &k, int64_t iteration) { released([&] { k.begin(iteration); }); }, "iteration"_a,
+            "Starts iteration `iteration`: its paths, and whatever it builds from the kernels run "
+            "before it (photon maps, beams, connections); writes no ray.")
+        .def("end", [](Kernel &k) { released([&] { k.end(); }); },
+             "Ends the iteration: its results to the film (or records), in a fixed order.")
         .def_prop_ro("lanes", [](const Kernel &k) { return k.lanes(); })
         .def("lane", [](Kernel &k, int i) -> Lane & { return k.lane(i); }, "index"_a, nb::rv_policy::reference_internal)
         .def_prop_ro("density_lookups", [](const Kernel &k) { return k.density_lookups(); });

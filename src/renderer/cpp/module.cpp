@@ -60,7 +60,7 @@ static void add_scene(nb::module_ &m) {
                      t.exterior = exterior.data()[i];
                      t.transition = transition.data()[i] != 0;
                  }
-             })
+             }, "vertices"_a, "material"_a, "emitter"_a, "interior"_a, "exterior"_a, "transition"_a)
         .def("add_material",
              [](Scene &s, MaterialType type, V3 reflectance, double ior) {
                  s.materials.push_back(Material{type, vec(reflectance), ior});

@@ -64,7 +64,7 @@ static void bind_ppb(nb::module_ &m) {
                  return nb::make_tuple(to_numpy(std::move(ray), {k}), to_numpy(std::move(beam), {k}),
                                        to_numpy(std::move(tb), {k}), to_numpy(std::move(tr), {k}),
                                        to_numpy(std::move(dist), {k}), to_numpy(std::move(sine), {k}));
-             })
+             }, "origins"_a, "directions"_a, "tmax"_a)
         .def_prop_ro("beam_count", [](const BeamBvh &b) { return b.beams().size(); })
         .def_prop_ro("piece_count", &BeamBvh::piece_count)
         .def_prop_ro("node_count", &BeamBvh::node_count)

@@ -10,7 +10,7 @@ from typing import Protocol
 import numpy as np
 
 from ..errors import PgiError
-from ..known_methods import IMPLEMENTED
+from ..known_methods import EXAMPLES, IMPLEMENTED
 from ..scene.model import Scene
 from ..scene.yaml_dialect import parse_yaml_value
 
@@ -68,7 +68,8 @@ def check_method_parameters(method_id: str, names: Iterable[str]) -> None:
     """Refuses `method.KEY` names the method does not know, before any scene is loaded."""
     from .params import MethodParams
 
-    MethodParams(method_id, dict.fromkeys(names), get_method(method_id).parameters)
+    cls = get_method(method_id)
+    MethodParams(method_id, dict.fromkeys(names), cls.parameters, getattr(cls, "renamed", {}))
 
 
 def method_ids() -> list[str]:
@@ -80,9 +81,11 @@ def describe(method_id: str) -> str:
 
 
 def get_method(method_id: str) -> type[Method]:
-    if method_id not in IMPLEMENTED:
+    """The class of a method of the study, or of an example (known_methods.EXAMPLES)."""
+    known = {**IMPLEMENTED, **EXAMPLES}
+    if method_id not in known:
         raise PgiError(f"unknown method {method_id!r}; expected one of: {', '.join(method_ids())}")
     # The method's module imports only now: listing methods or rendering with one does not
     # load the others' dependencies.
-    module, cls, _ = IMPLEMENTED[method_id]
+    module, cls, _ = known[method_id]
     return getattr(import_module(f"{__name__}.{module}"), cls)

@@ -36,6 +36,7 @@ from .params import MethodParams
 class NativeMethod:
     id: str
     parameters: frozenset[str]  # the KEYs `--set method.KEY=VALUE` may set
+    renamed: dict[str, tuple[str, ...]] = {}  # old parameter names -> the names they now go by
 
     def __init__(
         self, scene: Scene, *, seed: int, threads: int, params: dict, spp_budget: int | None = None
@@ -44,7 +45,7 @@ class NativeMethod:
         self.spp_budget = spp_budget
         self.iterations = 0
         self.wavefronts: list[Wavefront] = []
-        p = MethodParams(self.id, params, self.parameters)
+        p = MethodParams(self.id, params, self.parameters, self.renamed)
         self.setup(p)
         self.method_params = p.used  # each parameter that applies, with the value used
 

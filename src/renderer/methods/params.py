@@ -4,7 +4,8 @@ so that a mistake is one line naming the method, the key and what was expected."
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable
+import sys
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 from ..errors import PgiError, shorten_repr
@@ -62,7 +63,32 @@ def budget_divisor(wanted: int, spp_budget: int | None) -> int:
 
 
 class MethodParams:
-    def __init__(self, method: str, params: dict[str, Any], known: Iterable[str]) -> None:
+    """``params`` as given; ``known``: the names the method reads; ``renamed``: old name -> the
+    name(s) it now goes by (given under an old name, a value is taken under the new ones, with
+    a warning on stderr; both old and new is an error)."""
+
+    def __init__(
+        self,
+        method: str,
+        params: dict[str, Any],
+        known: Iterable[str],
+        renamed: Mapping[str, tuple[str, ...]] | None = None,
+    ) -> None:
+        params = dict(params)
+        for old, new in (renamed or {}).items():
+            if old not in params:
+                continue
+            if clash := [n for n in new if n in params]:
+                raise PgiError(
+                    f"method {method}: {old} is an old name of {clash[0]}: give only one"
+                )
+            value = params.pop(old)
+            params.update(dict.fromkeys(new, value))
+            print(
+                f"pgi: warning: method {method}: {old} is an old name: "
+                f"use {' and '.join(f'{n}={shorten_repr(value)}' for n in new)}",
+                file=sys.stderr,
+            )
         known = set(known)
         unknown = set(params) - known
         if unknown:
@@ -107,6 +133,24 @@ class MethodParams:
             self.fail(key, expected)
         self.used[key] = float(self.params[key])
         return float(self.params[key])
+
+    def radius(
+        self, name: str, default_relative: float, scene_radius: float, zero_allowed: str = ""
+    ) -> float:
+        """A kernel radius, in world units, given either as ``{name}_world`` (world units) or as
+        ``{name}_relative`` (a fraction of the scene's bounding-sphere radius), not both; by
+        default ``default_relative``. Radii below MIN_RADIUS_FRACTION of the scene find no
+        photon (and 1 / (pi r^2) overflows near 1e-150), radii above MAX_RADIUS_FRACTION take
+        every photon everywhere. ``zero_allowed``: what a radius of 0 means where it is allowed."""
+        world, relative = f"{name}_world", f"{name}_relative"
+        if world in self.params and relative in self.params:
+            raise PgiError(f"method {self.method}: give {world} or {relative}, not both")
+        key, scale = (world, scene_radius) if world in self.params else (relative, 1.0)
+        lo, hi = MIN_RADIUS_FRACTION * scale, MAX_RADIUS_FRACTION * scale
+        value = self.number(key, default_relative, lo=0 if zero_allowed else lo, hi=hi)
+        if zero_allowed and 0 < value < lo:
+            self.fail(key, f"0 ({zero_allowed}) or >= {lo:g}")
+        return value if key == world else value * scene_radius
 
     def refuse_unused(self, key: str, used: bool, why: str) -> None:
         """A parameter given where it has no effect is a mistake, not something to ignore."""

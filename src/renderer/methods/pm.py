@@ -15,40 +15,49 @@ from __future__ import annotations
 
 from .. import _core
 from .base import NativeMethod
-from .params import MAX_RADIUS_FRACTION, MIN_RADIUS_FRACTION, MethodParams
+from .params import MethodParams
 
-DEFAULT_PHOTONS = 1 << 16
+DEFAULT_LIGHT_PATHS = 1 << 16
 # Vertices one iteration may record: the memory bound. Each costs about 200 bytes (the record,
 # its copy in a photon map and the kd-tree), so the default bounds an iteration at about 1.7 GB.
 DEFAULT_MAX_RECORDS = 1 << 23
 # Default radii relative to the scene's bounding-sphere radius.
-DEFAULT_RADIUS_SCALE = 0.02
+DEFAULT_RADIUS_RELATIVE = 0.02
 
 
 class PhotonMapping(NativeMethod):
     id = "pm"
     parameters = frozenset(
-        {"photons", "spp_per_iteration", "radius", "volume_radius", "radius_scale", "max_records"}
+        {
+            "light_paths",
+            "spp_per_iteration",
+            "surface_radius_world",
+            "surface_radius_relative",
+            "volume_radius_world",
+            "volume_radius_relative",
+            "max_records",
+        }
     )
-    default_radius_scale = DEFAULT_RADIUS_SCALE
+    renamed = {
+        "photons": ("light_paths",),
+        "radius": ("surface_radius_world",),
+        "volume_radius": ("volume_radius_world",),
+        "radius_scale": ("surface_radius_relative", "volume_radius_relative"),
+    }
+    default_radius_relative = DEFAULT_RADIUS_RELATIVE
 
     def setup(self, p: MethodParams) -> None:
-        self.photons = p.integer("photons", DEFAULT_PHOTONS, lo=1)
+        self.light_paths_per_iteration = p.integer("light_paths", DEFAULT_LIGHT_PATHS, lo=1)
         self.spp_per_iteration = p.spp_per_iteration("spp_per_iteration", 1, self.spp_budget)
-        p.light_paths_fit_in_memory("photons", self.photons)
+        p.light_paths_fit_in_memory("light_paths", self.light_paths_per_iteration)
         p.camera_paths_fit_in_memory("spp_per_iteration", self.spp_per_iteration, self.scene.film)
         max_records = p.integer("max_records", DEFAULT_MAX_RECORDS, lo=1)
-        lo, hi = MIN_RADIUS_FRACTION, MAX_RADIUS_FRACTION
-        scale = p.number("radius_scale", self.default_radius_scale, lo=lo, hi=hi)
         size = self.native.core.scene_radius
-        smallest, largest = MIN_RADIUS_FRACTION * size, MAX_RADIUS_FRACTION * size
-        self.radius = p.number("radius", scale * size, lo=smallest, hi=largest)
-        self.volume_radius = p.number("volume_radius", scale * size, lo=smallest, hi=largest)
-        both = "radius" in p.params and "volume_radius" in p.params
-        p.refuse_unused("radius_scale", not both, "when radius and volume_radius are both given")
+        self.radius = p.radius("surface_radius", self.default_radius_relative, size)
+        self.volume_radius = p.radius("volume_radius", self.default_radius_relative, size)
         self.alpha, self.volume_alpha = self.read_alphas(p)
         self.light_paths = self.light_paths_wavefront(
-            self.photons, "photons", max_records, segments=False
+            self.light_paths_per_iteration, "light_paths", max_records, segments=False
         )
         self.camera_paths = self.wavefront(
             _core.PhotonMapping(
@@ -79,11 +88,12 @@ class PhotonMapping(NativeMethod):
         last = max(0, self.iterations - 1)
         return {
             "spp": int(kernel.samples_per_pixel),
-            "photon_paths_per_iteration": self.photons,
+            "light_paths_per_iteration": self.light_paths_per_iteration,
             "surface_photons": int(kernel.surface_photons),
             "volume_photons": int(kernel.volume_photons),
-            "surface_radius": kernel.surface_radius(last),
-            "volume_radius": kernel.volume_radius(last),
+            # the last iteration's radii, in world units
+            "surface_radius_world": kernel.surface_radius(last),
+            "volume_radius_world": kernel.volume_radius(last),
             "kernel": "constant; surface: 2D disc; media: beam radiance estimate (2D disc)",
             "consistent": False,
         }

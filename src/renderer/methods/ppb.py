@@ -16,7 +16,7 @@ One iteration is a sequence of passes:
    followed; at the first diffuse surface the path ends with emission, next-event
    estimation and a density estimate of the surface photons that arrived there after
    at least one scattering (radius of a d = 2 schedule). Shadow rays are resolved in
-   batches. With ``surface_radius=0`` surfaces are path traced as in pt instead, and
+   batches. With ``surface_radius_relative=0`` surfaces are path traced as in pt instead, and
    after ``gather_bounces`` + 1 diffuse bounces a camera path stops gathering and
    scatters in media itself (the split keeps every path counted once).
 
@@ -28,7 +28,7 @@ from __future__ import annotations
 
 from .. import _core
 from .base import NativeMethod
-from .params import MAX_RADIUS_FRACTION, MIN_RADIUS_FRACTION, MethodParams
+from .params import MethodParams
 from .schedules import expected_mse_slopes
 
 DEFAULT_LIGHT_PATHS = 1 << 13
@@ -38,7 +38,7 @@ DEFAULT_MAX_BEAMS = 1 << 22
 # Light-path records (vertices plus segments) per iteration, as pm's: beams come from them.
 DEFAULT_MAX_RECORDS = 1 << 23
 # Initial radius and the longest BVH piece of a beam, relative to the scene's radius.
-DEFAULT_RADIUS = 0.01
+DEFAULT_BEAM_RADIUS = 0.01
 DEFAULT_PIECE_LENGTH = 0.2
 # alpha = 4 / (d + 4) with d = 1 minimises the asymptotic MSE where the radiance is smooth
 # (Knaus & Zwicker 2011; cpp/radius_schedule.h has the rate at edges).
@@ -58,38 +58,45 @@ class ProgressivePhotonBeams(NativeMethod):
         {
             "light_paths",
             "spp_per_iteration",
-            "radius",
-            "alpha",
+            "beam_radius_world",
+            "beam_radius_relative",
+            "beam_alpha",
             "max_beams",
             "max_records",
-            "piece_length",
+            "piece_length_relative",
             "gather_bounces",
-            "surface_radius",
+            "surface_radius_world",
+            "surface_radius_relative",
             "surface_alpha",
         }
     )
+    renamed = {
+        "radius": ("beam_radius_relative",),
+        "alpha": ("beam_alpha",),
+        "surface_radius": ("surface_radius_relative",),
+        "piece_length": ("piece_length_relative",),
+    }
 
     def setup(self, p: MethodParams) -> None:
         light_paths = p.integer("light_paths", DEFAULT_LIGHT_PATHS, lo=1)
         spp = p.spp_per_iteration("spp_per_iteration", 1, self.spp_budget)
         p.light_paths_fit_in_memory("light_paths", light_paths)
         p.camera_paths_fit_in_memory("spp_per_iteration", spp, self.scene.film)
-        alpha = p.number("alpha", DEFAULT_ALPHA, lo=0, hi=1, lo_open=True)
-        radius = p.number("radius", DEFAULT_RADIUS, lo=MIN_RADIUS_FRACTION, hi=MAX_RADIUS_FRACTION)
-        piece = p.number("piece_length", DEFAULT_PIECE_LENGTH, lo=0, lo_open=True)
+        alpha = p.number("beam_alpha", DEFAULT_ALPHA, lo=0, hi=1, lo_open=True)
+        size = self.native.core.scene_radius
+        radius = p.radius("beam_radius", DEFAULT_BEAM_RADIUS, size)
+        piece = p.number("piece_length_relative", DEFAULT_PIECE_LENGTH, lo=0, lo_open=True)
         max_beams = p.integer("max_beams", DEFAULT_MAX_BEAMS, lo=1)
         max_records = p.integer("max_records", DEFAULT_MAX_RECORDS, lo=1)
         gather_bounces = p.integer("gather_bounces", DEFAULT_GATHER_BOUNCES, lo=0)
         # 0: path-traced surfaces
-        surface_radius = p.number(
-            "surface_radius", DEFAULT_SURFACE_RADIUS, lo=0, hi=MAX_RADIUS_FRACTION
+        surface_radius = p.radius(
+            "surface_radius", DEFAULT_SURFACE_RADIUS, size, zero_allowed="path-traced surfaces"
         )
-        if 0 < surface_radius < MIN_RADIUS_FRACTION:
-            p.fail("surface_radius", f"0 (path-traced surfaces) or >= {MIN_RADIUS_FRACTION:g}")
         surface_alpha = p.number("surface_alpha", DEFAULT_SURFACE_ALPHA, lo=0, hi=1, lo_open=True)
-        p.refuse_unused("gather_bounces", surface_radius == 0, "unless surface_radius=0")
-        p.refuse_unused("surface_alpha", surface_radius > 0, "with surface_radius=0")
-        size = self.native.core.scene_radius
+        traced = "path-traced surfaces (a surface radius of 0)"
+        p.refuse_unused("gather_bounces", surface_radius == 0, f"unless with {traced}")
+        p.refuse_unused("surface_alpha", surface_radius > 0, f"with {traced}")
         self.light_paths = self.light_paths_wavefront(
             light_paths, "light_paths", max_records, vertices=surface_radius > 0
         )
@@ -103,12 +110,12 @@ class ProgressivePhotonBeams(NativeMethod):
             spp,
             self.threads,
             max_beams,
-            radius * size,
+            radius,
             alpha,
             piece * size,
             gather_bounces,
         )
-        kernel.set_surface_photons(surface_radius * size, surface_alpha)
+        kernel.set_surface_photons(surface_radius, surface_alpha)
         self.camera_paths = self.wavefront(kernel)
         self.spp_per_iteration = spp
         self.alpha, self.surface_alpha = alpha, surface_alpha
@@ -131,7 +138,7 @@ class ProgressivePhotonBeams(NativeMethod):
             # the last iteration's radii in world units (the parameters are relative)
             "beam_radius_world": float(kernel.radius(last)),
             "surface_radius_world": float(kernel.surface_radius(last)),
-            "alpha": self.alpha,
+            "beam_alpha": self.alpha,
             "surface_alpha": self.surface_alpha,
             # alpha = 1 keeps a radius fixed: the image converges to a blurred one
             "consistent": all(a < 1 for a, _ in self.kernels),

@@ -20,27 +20,29 @@ from .schedules import expected_mse_slopes
 
 DEFAULT_ALPHA = 2.0 / 3.0
 # sppm starts wider than pm: the radius shrinks with the iterations.
-DEFAULT_INITIAL_RADIUS_SCALE = 0.04
+DEFAULT_INITIAL_RADIUS_RELATIVE = 0.04
 
 
 class StochasticProgressivePhotonMapping(PhotonMapping):
     id = "sppm"
-    parameters = PhotonMapping.parameters | {"alpha", "volume_alpha"}
-    default_radius_scale = DEFAULT_INITIAL_RADIUS_SCALE
+    parameters = PhotonMapping.parameters | {"surface_alpha", "volume_alpha"}
+    renamed = {**PhotonMapping.renamed, "alpha": ("surface_alpha",)}
+    default_radius_relative = DEFAULT_INITIAL_RADIUS_RELATIVE
 
     def read_alphas(self, p: MethodParams) -> tuple[float, float]:
-        """Knaus-Zwicker alphas of the surface and volume schedules."""
-        alpha = p.number("alpha", DEFAULT_ALPHA, lo=0, hi=1, lo_open=True, hi_open=True)
+        """Knaus-Zwicker alphas of the surface and volume schedules (volume: the surface's by
+        default)."""
+        alpha = p.number("surface_alpha", DEFAULT_ALPHA, lo=0, hi=1, lo_open=True, hi_open=True)
         volume_alpha = p.number("volume_alpha", alpha, lo=0, hi=1, lo_open=True, hi_open=True)
         return alpha, volume_alpha
 
     def method_stats(self) -> dict:
         s = super().method_stats()
         s.update(
-            alpha=self.alpha,
+            surface_alpha=self.alpha,
             volume_alpha=self.volume_alpha,
-            initial_surface_radius=self.radius,
-            initial_volume_radius=self.volume_radius,
+            initial_surface_radius_world=self.radius,
+            initial_volume_radius_world=self.volume_radius,
             consistent=True,
             **expected_mse_slopes([tuple(k) for k in self.camera_paths.kernel.kernels]),
         )
