@@ -33,6 +33,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=3)
     parser.add_argument("--threads", type=at_least(1), default=2)
     parser.add_argument("--set", action="append", default=[], help="method.KEY=VALUE for all")
+    parser.add_argument(
+        "--override", action="append", default=[], help="a scene override KEY=VALUE for all"
+    )
     parser.add_argument("--save", type=Path, help="also write each image as DIR/scene.method.npy")
     args = parser.parse_args(argv)
     params = {}
@@ -40,7 +43,7 @@ def main(argv: list[str] | None = None) -> int:
         key, _, value = kv.partition("=")
         params[key.removeprefix("method.")] = int(value) if value.isdigit() else value
     for name in args.scenes:
-        size = f"film.width={args.size}", f"film.height={args.size}"
+        size = f"film.width={args.size}", f"film.height={args.size}", *args.override
         for method in args.methods:
             scene = load_scene(name, size)
             cls = get_method(method)

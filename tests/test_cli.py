@@ -527,7 +527,7 @@ def test_a_setting_the_method_does_not_read_is_refused(tmp_path):
     """Mitsuba has no transmittance estimator of ours: `--set integrator.estimator=delta`
     would render plain Mitsuba under another name."""
     out = tmp_path / "m.exr"
-    for kv in ("integrator.estimator=delta", "integrator.march_step=0.1"):
+    for kv in ("integrator.estimator=delta", "integrator.march_step=0.1", "integrator.rr=mitsuba"):
         r = pgi("render", "smoke", "--method", "mitsuba", "--spp", "1", *small("--set", kv),
                 "-o", str(out))  # fmt: skip
         assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr

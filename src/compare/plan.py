@@ -196,7 +196,12 @@ class SceneSpec:
 # The settings a variant may change: they change how an image is estimated, not what it
 # shows (ray marching's bias is there to be measured), so every variant is compared with the
 # scene's one reference.
-VARIANT_SCENE_KEYS = ("integrator.estimator", "integrator.march_step", "integrator.rr_depth")
+VARIANT_SCENE_KEYS = (
+    "integrator.estimator",
+    "integrator.march_step",
+    "integrator.rr_depth",
+    "integrator.rr",
+)
 
 
 @dataclass(frozen=True)

@@ -132,6 +132,7 @@ def build_native_scene(scene: Scene, majorant_cell: int = MAJORANT_CELL) -> Nati
     """Flatten shapes into one triangle list and describe everything else to the core.
     ``majorant_cell``: voxels per majorant-grid cell along each axis (benchmarks vary it)."""
     core = _core.Scene()
+    core.roulette = _core.Roulette[scene.integrator.rr]
     material_ids = {}
     for name, m in scene.materials.items():
         material_ids[name] = core.add_material(

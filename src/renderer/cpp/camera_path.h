@@ -183,13 +183,13 @@ public:
         p.eta2 *= bs.eta * bs.eta;
         p.alive = russian_roulette(p);
     }
-    // Mitsuba's rule: a path that carries nothing ends (it could add nothing more, and
-    // would trace rays until rr_depth); after rr_depth real events, survive_roulette on
-    // max(throughput) * eta^2.
+    // A path that carries nothing ends (it could add nothing more, and would trace rays until
+    // rr_depth); after rr_depth real events, survive_roulette on max(throughput) * eta^2 (the
+    // eta^2 undoes refraction's scaling of radiance, as in Mitsuba and pbrt).
     bool russian_roulette(CameraPath &p) const {
         if (is_black(p.throughput)) return false;
         if (p.depth <= rr_depth_) return true;
-        return survive_roulette(p.throughput, max_component(p.throughput) * p.eta2, p.rng);
+        return survive_roulette(p.throughput, max_component(p.throughput) * p.eta2, p.rng, scene_.roulette);
     }
 
 private:

@@ -101,14 +101,20 @@ struct Frame {
     Vec3 to_local(const Vec3 &v) const { return {dot(v, s), dot(v, t), dot(v, n)}; }
 };
 
+// An "unlimited" path ends after this many real scattering events: depths are recorded in 16
+// bits, and only a closed, perfectly white scene (where no path ever loses throughput, so the
+// throughput roulette never ends one) comes near it.
+constexpr int kMaxPathEvents = 32767;
+
 // Mitsuba's max_depth, the one rule every method applies: a path may have fewer than
 // max_depth real scattering events (null crossings and null collisions are free). So 0 renders
 // black, 1 shows emitters seen directly, 2 adds direct light, and a negative value (-1) is
-// unlimited. Each method counts the events of the path it builds and asks allows(count).
+// unlimited (up to kMaxPathEvents). Each method counts the events of the path it builds and
+// asks allows(count).
 class DepthLimit {
 public:
     explicit DepthLimit(int max_depth) : max_depth_(max_depth) {}
-    bool allows(int events) const { return max_depth_ < 0 || events < max_depth_; }
+    bool allows(int events) const { return max_depth_ < 0 ? events < kMaxPathEvents : events < max_depth_; }
     bool unlimited() const { return max_depth_ < 0; }
     int max_depth() const { return max_depth_; }
 

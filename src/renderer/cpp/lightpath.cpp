@@ -335,7 +335,7 @@ void LightPaths::scatter_on_surface(LightPathState &p, size_t slot, int tri, con
 bool LightPaths::russian_roulette(LightPathState &p) {
     if (is_black(p.power)) return false;
     if (p.depth <= rr_depth_) return true;
-    return survive_roulette(p.power, max_component(p.power) * p.inv_initial, p.rng);
+    return survive_roulette(p.power, max_component(p.power) * p.inv_initial, p.rng, scene_->roulette);
 }
 
 // Slot `slot`'s vertex: path p at x, arrived from wi, with its power, medium, depth and

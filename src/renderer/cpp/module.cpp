@@ -22,6 +22,9 @@ static void add_kinds(nb::module_ &m) {
         .value("hg", PhaseType::HenyeyGreenstein)
         .value("rayleigh", PhaseType::Rayleigh)
         .value("tabulated", PhaseType::Tabulated);
+    nb::enum_<Roulette>(m, "Roulette")
+        .value("throughput", Roulette::Throughput)
+        .value("mitsuba", Roulette::Mitsuba);
     nb::enum_<Estimator>(m, "Estimator")
         .value("delta", Estimator::Delta)
         .value("ratio", Estimator::Ratio)
@@ -147,6 +150,7 @@ static void add_scene(nb::module_ &m) {
              [](Scene &s, V3 origin, V3 forward, V3 right, V3 up, int width, int height, int medium) {
                  s.camera = Camera{vec(origin), vec(forward), vec(right), vec(up), width, height, medium};
              }, "origin"_a, "forward"_a, "right"_a, "up"_a, "width"_a, "height"_a, "medium"_a)
+        .def_rw("roulette", &Scene::roulette, "The Russian roulette rule of every path (scene.h).")
         .def("finalize", &Scene::finalize)
         .def_prop_ro("triangle_count", [](const Scene &s) { return s.triangles.size(); })
         .def_prop_ro("ray_epsilon", [](const Scene &s) { return s.ray_epsilon; })

@@ -32,6 +32,10 @@ struct Triangle {
 
 enum class LightType : int { Area = 0, Point = 1, Spot = 2, Directional = 3 };
 
+// The Russian roulette every path plays after rr_depth real events (wavefront.h,
+// survive_roulette): survival from its throughput (the default), or Mitsuba's capped rule.
+enum class Roulette : int { Throughput = 0, Mitsuba = 1 };
+
 struct AreaEmitter {
     RGB radiance;
     std::vector<int> triangles;
@@ -100,6 +104,7 @@ public:
     std::vector<Light> lights;
     Distribution1D light_selection;  // by approximate power
     Camera camera;
+    Roulette roulette = Roulette::Throughput;  // the scene's integrator.rr
     double ray_epsilon = 1e-5;  // surface offset, relative to the scene's size
     double scene_radius = 1;
     Vec3 scene_center;

@@ -90,10 +90,21 @@ double advance_by_phase(const Medium &m, Path &p, const Vec3 &x) {
     return pdf;
 }
 
-// Russian roulette's draw for every path, as Mitsuba's volpath plays it: the path goes on
-// with probability min(q, 0.95) and `carried` (throughput or power) is divided by it.
-inline bool survive_roulette(RGB &carried, double q, Sampler &rng) {
-    q = std::min(q, 0.95);
+// Russian roulette's draw for every path (camera and light paths alike): the path goes on with
+// probability q (its throughput, or its power relative to what it was emitted with) and
+// `carried` is divided by it. Under the scene's rule (scene.h, Roulette):
+//   Throughput  q capped at 1 (pbrt-v4): a path that carries at least what it started with
+//               always goes on, and a survivor carries 1 at most, so weights stay bounded
+//               however many events a path takes (a white cloud: thousands);
+//   Mitsuba     q capped at 0.95 (Mitsuba's volpath): every event past rr_depth costs 5 %, so
+//               a path of n such events that survives carries 0.95^-n: in white, dense media
+//               the estimate's variance explodes (e^82 after 1600 events).
+inline bool survive_roulette(RGB &carried, double q, Sampler &rng, Roulette rule) {
+    if (rule == Roulette::Mitsuba) {
+        q = std::min(q, 0.95);
+    } else if (q >= 1) {
+        return true;
+    }
     if (!(rng.next() < q)) return false;
     carried = carried / q;
     return true;

@@ -36,7 +36,8 @@ class Method(Protocol):
 # under another name (a study variant, say), so a render refuses it. Per method: who renders
 # it (named in the message: `pgi reference` is Mitsuba too) and the settings.
 UNREAD_SETTINGS: dict[str, tuple[str, tuple[str, ...]]] = {
-    "mitsuba": ("Mitsuba", ("integrator.estimator", "integrator.march_step")),  # ours only
+    # ours only: Mitsuba always uses its own transmittance estimator and roulette
+    "mitsuba": ("Mitsuba", ("integrator.estimator", "integrator.march_step", "integrator.rr")),
 }
 
 

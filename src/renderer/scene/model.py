@@ -49,6 +49,10 @@ class Film:
 class Integrator:
     max_depth: int = -1  # Mitsuba's meaning: 1 = emitters only, 2 = direct light; -1 = unlimited
     rr_depth: int = 5  # Russian roulette starts at this depth, as in Mitsuba
+    # Its rule: "throughput" (survive with probability min(1, throughput), as pbrt-v4; weights
+    # stay bounded in white, dense media) or "mitsuba" (capped at 0.95, as Mitsuba's volpath;
+    # ours only: Mitsuba always plays its own).
+    rr: str = "throughput"
     # Transmittance estimator in density grids: "delta", "ratio", "residual" or "raymarch"
     # (ours only; Mitsuba's volpath always uses its own). march_step: raymarch step length in
     # world units, 0 = half the grid's smallest voxel.

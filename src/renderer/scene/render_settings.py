@@ -52,12 +52,17 @@ def read_film(val: Validator, doc: dict) -> Film:
                 val.integer(film_doc["height"], ("film", "height"), 1, MAX_FILM_SIDE))  # fmt: skip
 
 
+# Russian roulette rules (cpp/wavefront.h, survive_roulette): survival from the throughput
+# (pbrt-v4's rule, the default) or Mitsuba's, capped at 0.95.
+ROULETTES = ("throughput", "mitsuba")
+
+
 def read_integrator(val: Validator, doc: dict) -> Integrator:
     """The optional ``integrator`` section, with its defaults."""
     integ = val.mapping(
         or_empty(doc.get("integrator"), {}),
         ("integrator",),
-        optional=("max_depth", "rr_depth", "estimator", "march_step"),
+        optional=("max_depth", "rr_depth", "rr", "estimator", "march_step"),
     )
     integrator = Integrator(
         # Depths reach the native core and Mitsuba as 32-bit ints.
@@ -65,6 +70,7 @@ def read_integrator(val: Validator, doc: dict) -> Integrator:
             integ.get("max_depth", -1), ("integrator", "max_depth"), -1, INT32_MAX
         ),
         rr_depth=val.integer(integ.get("rr_depth", 5), ("integrator", "rr_depth"), 1, INT32_MAX),
+        rr=val.string(integ.get("rr", "throughput"), ("integrator", "rr"), ROULETTES),
         estimator=val.string(
             integ.get("estimator", "ratio"), ("integrator", "estimator"), ESTIMATORS
         ),
