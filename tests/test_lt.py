@@ -3,8 +3,9 @@
 Parity: lt's image must agree with Mitsuba's volpath and with our pt on cbox and
 cbox-fog (32x32), judged by z-scores from measured variance (tests/parity.py); the
 camera importance We = 1 / (A_pix cos^4) is what makes the absolute level match.
-Lights of every type (point, spot, directional; lights inside a medium, found by
-probing) are checked against pt on small scenes of their own.
+Lights of every type (point, spot, directional; lights inside a medium, found by the
+scene's rule) are checked against pt on small scenes of their own; the rule itself (the
+walk from the camera, docs/scene-format.md "Where lights emit") is checked at the end.
 """
 
 from __future__ import annotations
@@ -94,7 +95,7 @@ def test_lt_checks_have_power(estimates, other):
 
 # A slab of chromatic fog over a floor (its bottom face below the floor: coplanar faces
 # would make the medium at the floor ambiguous), lit by a point light and a spot light above it:
-# light paths start in vacuum (found by probing), enter the fog through its null
+# light paths start in vacuum (where the walk from the camera ends), enter the fog through its null
 # boundary, and both emitters are sampled. (Lights inside the fog would give pt's
 # next-event estimation infinite variance -- I / r^2 at fog vertices near the light --
 # which a z-test cannot judge; cbox-fog covers lights inside a medium.)
@@ -364,31 +365,133 @@ def test_vertex_order_is_deterministic_across_threads():
         assert np.array_equal(va[key], vb[key]), key
 
 
+def _emission_media(scene) -> tuple[np.ndarray, np.ndarray]:
+    """(per triangle, per scene light) medium the core's light paths start in (-1: vacuum),
+    as the core holds them."""
+    native = build_native_scene(scene)
+    per_triangle, per_light = native.core.emission_media()
+    assert np.array_equal(per_triangle, native.emission.per_triangle)
+    return per_triangle, per_light[native.light_ids]
+
+
+def _shape_triangles(scene, index: int) -> slice:
+    """The core's triangles of shape ``index`` (no triangle dropped before it)."""
+    first = sum(len(s.faces) for s in scene.shapes[:index])
+    return slice(first, first + len(scene.shapes[index].faces))
+
+
+def _lamp_shape(scene) -> int:
+    return next(i for i, s in enumerate(scene.shapes) if s.emission is not None)
+
+
+def _lamp_media(scene) -> np.ndarray:
+    """The media the triangles of the scene's first emitting shape emit into."""
+    per_triangle, _ = _emission_media(scene)
+    return per_triangle[_shape_triangles(scene, _lamp_shape(scene))]
+
+
 @pytest.mark.parametrize(
     "name, expected, overrides",
     [
         ("cbox-fog", "fog", ()),
         ("cbox", None, ()),
         ("volcaustic", "fog", ()),
-        # the fog box built exactly on the walls, floor and ceiling: the probes hit a wall and
-        # the fog's face at one distance (stepping past the wall jumped the face: vacuum, and
-        # lt +38 %, pm -53 %, ppb -62 % against pt)
+        # the fog box built exactly on the walls, floor and ceiling: the walk enters it through
+        # its front face and passes the walls, which name no medium (random probes used to hit
+        # a wall and the fog's face at one distance and step past the face: vacuum, and lt
+        # +38 %, pm -53 %, ppb -62 % against pt)
         ("cbox-fog", "fog", ("shapes[8].transform=[]",)),
     ],
     ids=["cbox-fog", "cbox", "volcaustic", "cbox-fog-box-on-the-walls"],
 )
 def test_lights_emit_into_their_medium(name, expected, overrides):
-    """cbox-fog: inside a fog box (found by probes); volcaustic: in the camera's unbounded fog."""
-    from renderer.engine import build_native_scene
-    from renderer.methods.lightpath import emission_media
-
+    """cbox-fog: inside a fog box the walk from the camera enters; volcaustic: in the camera's
+    fog, which no shape bounds around the lamp (the walk passes the ball only beside it)."""
     scene = load_small(name, 8, 8, overrides)
-    native = build_native_scene(scene)
-    per_triangle, _ = emission_media(native, scene)
-    light = next(i for i, s in enumerate(scene.shapes) if s.emission is not None)
-    first = sum(len(s.faces) for s in scene.shapes[:light])
     want = -1 if expected is None else list(scene.media).index(expected)
-    assert np.all(per_triangle[first : first + len(scene.shapes[light].faces)] == want)
+    assert np.all(_lamp_media(scene) == want)
+
+
+def test_the_walk_follows_the_transitions_through_nested_media(tmp_path):
+    """A box of smoke inside a box of fog, the camera outside both: the walk enters the fog
+    (vacuum -> fog), then the smoke (fog -> smoke), and leaves them in turn. A point light and
+    a small lamp inside the smoke emit into it, a spot light between the boxes into the fog,
+    and the box's own lamp, outside both, into vacuum. The walk's probe answers for any point;
+    the line to the centre of the box passes exactly through the edge that the two triangles
+    of the fog's front face share, and enters the fog all the same (edges are inclusive:
+    excluded, the walk there ended in vacuum)."""
+    from renderer.scene.loader import find_scene_file
+
+    (tmp_path / "scene.yaml").write_text(textwrap.dedent(f"""\
+        include: {find_scene_file("cbox").parent / "box.yaml"}
+        camera: {{origin: [0, 0, 4], target: [0, 0, 0], up: [0, 1, 0], fov: 39.3}}
+        media:
+          fog: {{type: homogeneous, sigma_t: 0.5, albedo: 0.8}}
+          smoke: {{type: homogeneous, sigma_t: 2.0, albedo: 0.9}}
+        materials: {{boundary: {{type: "null"}}}}
+        shapes:
+          - {{name: fog-box, type: cube, material: boundary, interior: fog,
+              transform: [{{scale: 0.75}}]}}
+          - {{name: smoke-box, type: cube, material: boundary, interior: smoke, exterior: fog,
+              transform: [{{scale: 0.2}}, {{translate: [0.3, -0.3, 0.2]}}]}}
+          - {{name: small-lamp, type: rectangle, material: white, emission: 2,
+              transform: [{{scale: 0.05}}, {{rotate: {{axis: [1, 0, 0], angle: 90}}}},
+                          {{translate: [0.3, -0.2, 0.2]}}]}}
+        lights:
+          - {{type: point, position: [0.25, -0.35, 0.15], intensity: 1}}
+          - {{type: spot, position: [-0.5, 0.4, -0.3], target: [0, -1, 0], intensity: 1}}
+        """))  # fmt: skip
+    scene = load_scene(tmp_path / "scene.yaml")
+    fog, smoke = 0, 1
+    per_triangle, per_light = _emission_media(scene)
+    names = [s.name for s in scene.shapes]
+    assert np.all(per_triangle[_shape_triangles(scene, names.index("small-lamp"))] == smoke)
+    assert np.all(per_triangle[_shape_triangles(scene, names.index("light"))] == -1)
+    assert per_light.tolist() == [smoke, fog]
+    core = build_native_scene(scene).core
+    # In the smoke; in the fog beside it; at the centre (through the face's shared edge);
+    # behind the box; in the fog after crossing the smoke.
+    points = [[0.3, -0.3, 0.2], [0.6, 0.5, 0.6], [0, 0, 0], [0, 0, -3], [0.3, -0.3, -0.5]]
+    assert core.walk_media(np.array(points, np.float64)).tolist() == [smoke, fog, fog, -1, fog]
+
+
+def test_a_stated_medium_overrides_the_walk_with_a_warning(tmp_path, capsys):
+    """A light or emitting shape that states a medium emits into it. Where the walk from the
+    camera ends in another, the light-side methods and `pgi validate` say so, one line each
+    naming the file, the light and both media; pt says nothing. Stating the medium the walk
+    finds is silent."""
+    from renderer import cli
+    from renderer.methods import get_method
+
+    lights = "lights=[{type: point, position: [0, 0.5, 0], intensity: 1, medium: vacuum}]"
+    overrides = (lights, "shapes[7].medium=vacuum")  # cbox-fog's lamp and light: in the fog
+    scene = load_small("cbox-fog", 8, 8, overrides)
+    assert np.all(_lamp_media(scene) == -1) and _emission_media(scene)[1].tolist() == [-1]
+    unstated = load_small("cbox-fog", 8, 8, (lights.replace(", medium: vacuum", ""),))
+    assert np.all(_lamp_media(unstated) == 0) and _emission_media(unstated)[1].tolist() == [0]
+    capsys.readouterr()
+    for method in ("lt", "pm", "sppm", "ppb"):
+        get_method(method)(scene, seed=0, threads=1, params={})
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 2, err
+        lamp, light = err  # named where each is written: the lamp in the included box.yaml
+        assert light.startswith(f"pgi: warning: {scene.path} (override 'lights="), light
+        assert "): lights[0]: states" in light, light
+        box = scene.path.parent / "../cbox/box.yaml"
+        assert lamp.startswith(f"pgi: warning: {box} (after override 'shapes[7].medium"), lamp
+        assert "): shapes[7] (light): states" in lamp, lamp
+        for line in err:
+            assert "states medium vacuum" in line and "ends in fog" in line, line
+    PathTracing(scene, seed=0, threads=1, params={})
+    assert capsys.readouterr().err == ""
+    args = ["validate", "cbox-fog", "--set", lights, "--set", "shapes[7].medium=vacuum"]
+    assert cli.main(args) == 0
+    out = capsys.readouterr()
+    assert "ok (" in out.out and len(out.err.strip().splitlines()) == 2, out.err
+    assert "lights[0]: states medium vacuum" in out.err, out.err
+    agreeing = load_small("cbox-fog", 8, 8, ("shapes[7].medium=fog",))
+    LightTracing(agreeing, seed=0, threads=1, params={})
+    assert capsys.readouterr().err == ""
 
 
 def test_an_emitter_a_medium_boundary_crosses_is_refused(tmp_path, capsys):
@@ -396,10 +499,10 @@ def test_an_emitter_a_medium_boundary_crosses_is_refused(tmp_path, capsys):
     fog reaching through the box's back wall, lit: the lower half of the wall emits into the
     fog, the upper half into vacuum. lt rendered it 14 % dark (one triangle 0.06 instead of
     1.1), pm and ppb their fog 11-16 % dark (found by a review). The light-path methods now
-    refuse the scene with the reason and the fix; pt renders it. Every shipped scene passes."""
+    refuse the scene with the reason and the fix, and `pgi validate` warns of it; pt renders
+    it. Every shipped scene passes."""
     from renderer import cli
-    from renderer.engine import build_native_scene
-    from renderer.methods.lightpath import emission_media
+    from renderer.methods.lightpath import check_emission_media
     from renderer.scene.loader import find_scene_file
 
     (tmp_path / "scene.yaml").write_text(
@@ -427,15 +530,21 @@ def test_an_emitter_a_medium_boundary_crosses_is_refused(tmp_path, capsys):
     # The wall is written in the included box.yaml, not in the scene file.
     crosses = r"box.yaml \(after override .*\): shapes\[2\] \(back\): a boundary of a medium"
     with pytest.raises(PgiError, match=crosses):
-        emission_media(native, scene)
+        check_emission_media(native)
+    assert cli.main(["validate", str(tmp_path), "--set", "shapes[2].emission=[1, 1, 1]"]) == 0
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("pgi: warning:") and len(err.splitlines()) == 1, err
+    assert "shapes[2] (back): a boundary of a medium crosses this emitter" in err, err
+    assert "lt, pm, sppm and ppb refuse this scene" in err, err
     out = tmp_path / "pt.exr"
     assert cli.main(["render", str(tmp_path), "--method", "pt", *lit, "-o", str(out)]) == 0
     unlit = load_scene(tmp_path / "scene.yaml")  # the ceiling's lamp lies outside the fog
-    emission_media(build_native_scene(unlit), unlit)
+    check_emission_media(build_native_scene(unlit))
+    assert np.all(_lamp_media(unlit) == -1)
     # The camera's fog fills the room (no shape names it) and a small smoke cube sits between
     # a lamp corner and the camera: no boundary crosses the lamp. Random probes from that
-    # corner missed the cube and said vacuum (found by a review); its route to the camera
-    # decides: through the cube, fog on the lamp's side of it.
+    # corner used to miss the cube and say vacuum (found by a review); the walk crosses the
+    # cube, into the smoke and out into the fog again.
     (tmp_path / "cube.yaml").write_text(textwrap.dedent(f"""\
         include: {find_scene_file("cbox").parent / "box.yaml"}
         camera: {{origin: [0, 0, 3.9], target: [0, 0, 0], up: [0, 1, 0], fov: 39.3,
@@ -448,73 +557,53 @@ def test_an_emitter_a_medium_boundary_crosses_is_refused(tmp_path, capsys):
           - {{name: smokebox, type: cube, material: boundary, interior: smoke, exterior: fog,
               transform: [{{scale: 0.06}}, {{translate: [0.175, 0.686, 1.31]}}]}}
         """))  # fmt: skip
-    for seed in range(5):
-        cube = load_scene(tmp_path / "cube.yaml")
-        emission_media(build_native_scene(cube), cube, seed)
+    cube = load_scene(tmp_path / "cube.yaml")
+    native = build_native_scene(cube)
+    check_emission_media(native)
+    assert np.all(_lamp_media(cube) == 0)
+    # The cube does lie on the walk to a lamp corner.
+    lamp = cube.shapes[_lamp_shape(cube)]
+    corner = lamp.vertices[np.argmax(lamp.vertices @ [1, 0, 1])]
+    camera = cube.camera.origin
+    at_the_cube = camera + (camera[2] - 1.31) / (camera[2] - corner[2]) * (corner - camera)
+    assert native.core.walk_media(at_the_cube[None]).tolist() == [1]
     shipped = sorted(p.parent.name for p in find_scene_file("cbox").parents[1].glob("*/scene.yaml"))
     for name in shipped:
-        scene = load_small(name, 8, 8)
-        emission_media(build_native_scene(scene), scene)
+        native = build_native_scene(load_small(name, 8, 8))
+        check_emission_media(native)
+        assert not native.emission.stated_elsewhere, name
 
 
 def test_sun_outside_a_fog_filled_room_starts_in_vacuum():
-    """crepuscular: the camera's fog fills a room no shape names, and the sun shines in
-    through null windows whose exterior is vacuum. The routes from the sun's disk that reach
-    the room through the windows decide; the ones the opaque walls end do not (the disk's
-    centre alone, followed through the room's opaque shell, put the sun in the fog)."""
-    from renderer.engine import build_native_scene
-    from renderer.methods.lightpath import emission_media
-
+    """crepuscular: the camera's fog fills a room, and the sun shines in through null windows
+    that name the fog as their interior and vacuum outside: a shape names the camera's
+    medium, so the sun is outside it, in vacuum. Stated, the sun emits into its medium."""
     scene = load_small("crepuscular", 8, 8)
-    native = build_native_scene(scene)
-    _, per_light = emission_media(native, scene)
-    assert per_light.tolist() == [-1]
-
-
-def test_disk_votes_for_the_medium_its_deciding_routes_find():
-    """The vote behind a directional light's medium: routes reaching the camera vote for its
-    medium (here 0), routes first crossing a named shape for the medium on the disk's side of
-    it, routes an opaque unnamed surface ends do not vote; with no vote the centre's route
-    (the first), followed through opaque surfaces, decides between the camera's medium and
-    vacuum."""
-    from renderer.methods import lightpath as L
-
-    cross, reach, ends, through = (
-        L._CROSSES_NAMED,
-        L._REACHES_CAMERA,
-        L._ENDS_OPAQUE,
-        L._ONLY_OPAQUE_TO_CAMERA,
-    )
-
-    def medium(outcomes, sides):
-        return L._disk_medium(np.array(outcomes), np.array(sides), 0)
-
-    assert medium([through, cross, cross, reach, ends], [-1, -1, -1, -1, -1]) == -1
-    assert medium([ends, reach, reach, cross], [-1, -1, -1, -1]) == 0
-    assert medium([ends, cross, cross, reach], [-1, 0, 0, -1]) == 0  # outside a box of 0
-    assert medium([ends, cross, reach], [-1, 1, -1]) == 0  # a tie: the smaller index
-    assert medium([through, ends, ends], [-1, -1, -1]) == 0
-    assert medium([ends, ends, through], [-1, -1, -1]) == -1
+    assert _emission_media(scene)[1].tolist() == [-1]
+    stated = load_small("crepuscular", 8, 8, ("lights[0].medium=fog",))
+    assert _emission_media(stated)[1].tolist() == [0]
 
 
 def test_sun_shining_into_an_unbounded_grid_starts_in_it():
     """A smoke grid no shape bounds, the camera in it, lit by the sun: the sun's light paths
     start in the smoke (outside its box, where the density is zero), as pt's shadow rays
-    towards the sun travel in it; with the camera outside every medium they start in vacuum."""
-    from renderer.engine import build_native_scene
-    from renderer.methods.lightpath import emission_media
-
+    towards the sun travel in it; with the camera outside every medium they start in vacuum;
+    with the grid bounded by a shape, in vacuum too, unless the sun states the smoke."""
     open_grid = (
         "camera.medium=smoke",
         "shapes=[{name: floor, type: rectangle, material: floor, "
         "transform: [{scale: 0.98}, {rotate: {axis: [1, 0, 0], angle: -90}}]}]",
         "lights=[{type: directional, direction: [0.3, -1, -0.2], irradiance: 2}]",
     )
-    for extra, want in ((open_grid, 0), (open_grid[1:], -1)):
+    bounded = (
+        open_grid[0],
+        open_grid[1][:-1] + ", {name: box, type: cube, material: floor, interior: smoke}]",
+        open_grid[2],
+    )
+    stated = (*bounded[:2], open_grid[2][:-2] + ", medium: smoke}]")
+    for extra, want in ((open_grid, 0), (open_grid[1:], -1), (bounded, -1), (stated, 0)):
         scene = load_small("smoke", 8, 8, extra)
-        native = build_native_scene(scene)
-        _, per_light = emission_media(native, scene)
-        assert per_light.tolist() == [want], extra
+        assert _emission_media(scene)[1].tolist() == [want], extra
 
 
 @pytest.mark.parametrize("method", ["lt", "pm", "sppm", "ppb"])

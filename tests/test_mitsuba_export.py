@@ -103,6 +103,31 @@ def test_every_element_loads_in_mitsuba(tmp_path):
     assert img.shape == (6, 8, 3) and np.all(np.isfinite(img))
 
 
+def test_lights_carry_the_medium_they_emit_into(tmp_path):
+    """Point, spot and directional lights get the medium they emit into, as ours has it: the
+    one stated, or where the walk from the camera ends (the camera's air; the smoke box, for
+    a light inside it); a sun that states none is outside the air some shapes name. A light
+    in vacuum gets none."""
+    doc = everything(tmp_path)
+    doc["lights"][2]["medium"] = "fog"
+    doc["lights"] += [
+        {"type": "point", "position": [0, 0.5, 0], "intensity": 1},  # in the smoke box
+        {"type": "spot", "position": [0, 1, 1], "target": [0, 0, 0], "intensity": 1,
+         "medium": "vacuum"},
+        {"type": "directional", "direction": [0, -1, 0], "irradiance": 1},
+    ]  # fmt: skip
+    scene = load_scene(write_scene(tmp_path, doc))
+    ms = load_mitsuba_scene(scene)
+    shapes = {s.id(): s for s in ms.shapes()}
+    by_name = {s.name: shapes[f"shape_{i:03d}"] for i, s in enumerate(scene.shapes)}
+    air, smoke = ms.sensors()[0].get_medium(), by_name["box"].interior_medium()
+    fog = by_name["ball"].interior_medium()
+    emitters = {e.id(): e for e in ms.emitters()}
+    media = [emitters[f"light_{i:03d}"].get_medium() for i in range(len(scene.lights))]
+    assert [m is want for m, want in zip(media, [air, air, fog, smoke], strict=False)] == [True] * 4
+    assert media[4:] == [None, None], media[4:]
+
+
 def test_shapes_carry_our_triangles(tmp_path):
     scene = load_scene(write_scene(tmp_path, everything(tmp_path)))
     shapes = {s.id(): s for s in load_mitsuba_scene(scene).shapes()}

@@ -341,6 +341,52 @@ def test_lights(tmp_path):
     expect_error(write(tmp_path, edit(lights=lights)), "lights[1].beam_width", "<= 20")
 
 
+def test_lights_and_emitters_may_state_their_medium(tmp_path):
+    """Every light type and an emitting shape naming no medium may state the medium it emits
+    into: a name from media, or vacuum (docs/scene-format.md, "Where lights emit")."""
+    media = {"fog": {"type": "homogeneous", "sigma_t": 1, "albedo": 0.5}}
+    lights = [
+        {"type": "point", "position": [0, 1, 0], "intensity": 1, "medium": "fog"},
+        {"type": "spot", "position": [0, 1, 0], "target": [0, 0, 0], "intensity": 5,
+         "medium": "vacuum"},
+        {"type": "directional", "direction": [0, -1, 0], "irradiance": 1, "medium": "fog"},
+        {"type": "point", "position": [0, 1, 0], "intensity": 1, "medium": None},
+    ]  # fmt: skip
+    doc = edit(media=media, lights=lights)
+    doc["shapes"][1]["medium"] = "vacuum"
+    scene = load_scene(write(tmp_path, doc))
+    assert [light.medium for light in scene.lights] == ["fog", "vacuum", "fog", None]
+    assert [shape.medium for shape in scene.shapes] == [None, "vacuum"]
+    doc["shapes"][1]["medium"] = "fog"
+    assert load_scene(write(tmp_path, doc)).shapes[1].medium == "fog"
+    lights[2]["medium"] = "smoke"
+    expect_error(write(tmp_path, edit(media=media, lights=lights)), "lights[2].medium",
+                 r"unknown medium 'smoke' \(defined: fog\)")  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "shape, names, pattern",
+    [
+        # an emitter that names media emits into its exterior: a medium key contradicts it
+        (1, {"interior": "fog"}, "emits into its exterior .*remove medium"),
+        (1, {"exterior": "fog"}, "emits into its exterior"),
+        (0, {}, "only an emitter .* states the medium"),  # the floor emits nothing
+    ],
+)
+def test_a_stated_medium_where_it_means_nothing_is_an_error(tmp_path, shape, names, pattern):
+    doc = edit(media={"fog": {"type": "homogeneous", "sigma_t": 1, "albedo": 0.5}})
+    doc["shapes"][shape].update({"medium": "fog", **names})
+    expect_error(write(tmp_path, doc), f"shapes[{shape}].medium", pattern)
+
+
+def test_a_medium_may_not_be_named_vacuum(tmp_path):
+    """`vacuum` is what a light states for no medium: no medium may take the name."""
+    doc = edit(media={"vacuum": {"type": "homogeneous", "sigma_t": 1, "albedo": 0.5}})
+    expect_error(write(tmp_path, doc), "media.vacuum", "name 'vacuum' is reserved")
+    expect_error(write(tmp_path, edit()), "media.vacuum", "reserved",
+                 ["media.vacuum={type: homogeneous, sigma_t: 1, albedo: 0.5}"])  # fmt: skip
+
+
 def test_null_material_written_as_yaml_null(tmp_path):
     doc = edit(materials={"white": {"type": "diffuse"}, "boundary": {"type": None}})
     assert load_scene(write(tmp_path, doc)).materials["boundary"].type == "null"

@@ -280,6 +280,16 @@ def cmd_validate(args: argparse.Namespace) -> int:
     overrides, _ = split_sets(args.set, "validate")
     scene = load_scene(args.scene, overrides)
     native = build_native_scene(scene)  # what only the core checks (e.g. a too-fine march)
+    # Where lights emit: what the light-side methods refuse or warn of, said here as warnings.
+    for split in native.emission.split_emitters:
+        print(
+            f"pgi: warning: {split.describe()}: lt, pm, sppm and ppb refuse this scene (light "
+            "paths start in one medium per triangle: split the emitter where the boundary "
+            "crosses it); pt and mitsuba render it as it is",
+            file=sys.stderr,
+        )
+    for line in native.emission.stated_elsewhere:
+        print(f"pgi: warning: {line}", file=sys.stderr)
     triangles = f"{len(native.triangles)} triangles"
     if native.dropped_triangles:
         triangles += f" ({native.dropped_triangles} degenerate ones dropped)"

@@ -10,7 +10,16 @@ import numpy as np
 
 from . import _core
 from .errors import PgiError
-from .scene.model import Camera, DirectionalLight, Film, Medium, PointLight, Scene, SpotLight
+from .scene.model import (
+    VACUUM,
+    Camera,
+    DirectionalLight,
+    Film,
+    Medium,
+    PointLight,
+    Scene,
+    SpotLight,
+)
 from .scene.triangles import kept_faces
 
 # Voxels per majorant cell: small enough to follow a plume's shape, large
@@ -21,19 +30,57 @@ MAJORANT_CELL = 4
 _MIN_MARCH_STEP = 1e-3
 
 
+# How far off an emitting triangle, on its front side, the walk from the camera ends, relative
+# to the scene's size: beyond the surface offsets of rays, well within any medium's boundary.
+_EMITTER_LIFT = 1e-4
+# A triangle's corners, pulled this fraction of the way towards its centroid, are walked to as
+# well: a medium's boundary that cuts across the triangle ends their walks in another medium.
+_CORNER_PULL = 0.01
+
+
+@dataclass(frozen=True)
+class SplitEmitter:
+    """An emitter whose parts end their walks from the camera in different media: a boundary
+    of a medium cuts it, and light paths, which start in one medium per triangle, would start
+    some of its light in the wrong one."""
+
+    where: str  # the shape, as messages name it
+    media: tuple[str, str]  # two of the media its parts lie in
+
+    def describe(self) -> str:
+        return (
+            f"{self.where}: a boundary of a medium crosses this emitter (part of it lies in "
+            f"{self.media[0]}, part in {self.media[1]})"
+        )
+
+
+@dataclass
+class EmissionMedia:
+    """The medium each light emits into, by the scene's rule (docs/scene-format.md, "Where
+    lights emit"), as the core holds them (-1: vacuum); and what the rule found amiss."""
+
+    per_light: np.ndarray  # per core light (area lights' entries unused)
+    per_triangle: np.ndarray  # per triangle (-1 where none emits)
+    split_emitters: list[SplitEmitter]
+    # One line per light or emitting shape that states a medium where its walk ends in another.
+    stated_elsewhere: list[str]
+
+
 @dataclass
 class NativeScene:
     core: _core.Scene
     triangles: np.ndarray  # (T, 3, 3) float64, the triangles both Embree and the core use
     kept: np.ndarray  # per face of every shape, in shape order: whether it is in `triangles`
     # As the core was given them: the index of each named medium; per triangle the medium
-    # inside and outside (-1: none named) and whether its shape names a medium at all; and
-    # the core's light index of each of the scene's lights (area lights come first).
+    # inside and outside (-1: none named) and whether its shape names a medium at all; the
+    # core's light index of each of the scene's lights (area lights come first); and the
+    # medium each light emits into.
     medium_ids: dict[str, int]
     interior: np.ndarray
     exterior: np.ndarray
     transition: np.ndarray
     light_ids: list[int]
+    emission: EmissionMedia
 
     @cached_property
     def normals(self) -> np.ndarray:
@@ -202,6 +249,80 @@ def build_native_scene(scene: Scene, majorant_cell: int = MAJORANT_CELL) -> Nati
         medium(scene.camera.medium),
     )
     core.finalize()
-    return NativeScene(
-        core, triangles, keep, medium_ids, inside, outside, transition.astype(bool), light_ids
+    native = NativeScene(
+        core, triangles, keep, medium_ids, inside, outside, transition.astype(bool), light_ids,
+        _emission_media(scene, core, triangles, owner, medium_ids, light_ids),
+    )  # fmt: skip
+    core.set_emission_media(native.emission.per_triangle, native.emission.per_light)
+    return native
+
+
+def _emission_media(
+    scene: Scene,
+    core: _core.Scene,
+    triangles: np.ndarray,
+    owner: np.ndarray,
+    medium_ids: dict[str, int],
+    light_ids: list[int],
+) -> EmissionMedia:
+    """The medium each light emits into (docs/scene-format.md, "Where lights emit"): the one
+    it states; an emitter's exterior where it names media; otherwise where the straight walk
+    from the camera to the light ends (Scene::walk_medium), and for a directional light the
+    camera's medium where no shape names it (a fog that fills the scene), else vacuum.
+    ``owner``: the shape of each of ``triangles``; the rest as the core was given them."""
+    names = [VACUUM, *medium_ids]  # by core index + 1
+
+    def medium(name: str | None) -> int:
+        return -1 if name is None or name == VACUUM else medium_ids[name]
+
+    per_light = np.full(core.light_count, -1, np.int32)
+    per_triangle = np.full(len(triangles), -1, np.int32)
+    splits: list[SplitEmitter] = []
+    stated_elsewhere: list[str] = []
+
+    def check_stated(where: str, stated: str | None, walked: int) -> None:
+        if stated is not None and medium(stated) != walked:
+            stated_elsewhere.append(
+                f"{where}: states medium {stated}, but the straight walk from the camera to it "
+                f"ends in {names[walked + 1]}; its light paths start in {stated}, as stated"
+            )
+
+    lift = _EMITTER_LIFT * float(np.ptp(triangles.reshape(-1, 3), axis=0).max())
+    normals = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    for index, shape in enumerate(scene.shapes):
+        members = np.flatnonzero(owner == index)
+        if shape.emission is None or not len(members):
+            continue
+        if shape.interior is not None or shape.exterior is not None:
+            per_triangle[members] = medium(shape.exterior)  # its front side
+            continue
+        tri = triangles[members]
+        centroid = tri.mean(axis=1)
+        off = normals[members] * lift
+        walked = core.walk_media(centroid + off)
+        corners = [
+            core.walk_media(tri[:, k] + _CORNER_PULL * (centroid - tri[:, k]) + off)
+            for k in range(3)
+        ]
+        found = np.concatenate([walked, *corners])
+        if np.any(found != walked[0]):
+            other = found[found != walked[0]][0]
+            media = names[walked[0] + 1], names[other + 1]
+            splits.append(SplitEmitter(scene.where_shape(index), media))
+        elif shape.medium is not None:
+            check_stated(scene.where_shape(index), shape.medium, int(walked[0]))
+        per_triangle[members] = walked if shape.medium is None else medium(shape.medium)
+
+    fills_scene = scene.camera.medium is not None and not any(
+        scene.camera.medium in (s.interior, s.exterior) for s in scene.shapes
     )
+    for i, light in enumerate(scene.lights):
+        if isinstance(light, DirectionalLight):
+            rule = medium(scene.camera.medium) if fills_scene else -1
+        else:
+            position = np.asarray(light.position, np.float64)[None]
+            rule = int(core.walk_media(position)[0])
+            check_stated(scene.where("lights", i), light.medium, rule)
+        per_light[light_ids[i]] = rule if light.medium is None else medium(light.medium)
+    return EmissionMedia(per_light, per_triangle, splits, stated_elsewhere)

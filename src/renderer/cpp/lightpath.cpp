@@ -13,20 +13,6 @@ LightPaths::LightPaths(std::shared_ptr<const Scene> scene, int max_depth, int rr
       threads_(std::max(1, threads)), max_records_(max_records) {
     if (paths_per_iteration <= 0) throw std::invalid_argument("paths_per_iteration must be positive");
     paths_.resize(size_t(paths_per_iteration));
-    emission_medium_triangle_.assign(scene_->triangles.size(), -1);
-    emission_medium_light_.assign(scene_->lights.size(), -1);
-}
-
-void LightPaths::set_emission_media(const std::vector<int32_t> &per_triangle,
-                                         const std::vector<int32_t> &per_light) {
-    if (per_triangle.size() != scene_->triangles.size() || per_light.size() != scene_->lights.size())
-        throw std::invalid_argument("emission media: one entry per triangle and per light expected");
-    for (int32_t m : per_triangle)
-        if (m >= int32_t(scene_->media.size())) throw std::invalid_argument("emission media: bad medium index");
-    for (int32_t m : per_light)
-        if (m >= int32_t(scene_->media.size())) throw std::invalid_argument("emission media: bad medium index");
-    emission_medium_triangle_ = per_triangle;
-    emission_medium_light_ = per_light;
 }
 
 void LightPaths::check_capacity() const {
@@ -157,9 +143,9 @@ void LightPaths::emit(LightPathState &p, size_t slot) {
         if (area) {
             const Triangle &T = scene.triangles[e.triangle];
             v.triangle = e.triangle;
-            v.medium = T.transition ? T.exterior : emission_medium_triangle_[e.triangle];
+            v.medium = T.transition ? T.exterior : scene.triangle_emission_medium(e.triangle);
         } else {
-            v.medium = emission_medium_light_[e.light];
+            v.medium = scene.light_emission_medium(e.light);
         }
         if (complete_) {
             v.pdf_fwd = e.pdf_pos;
@@ -170,12 +156,12 @@ void LightPaths::emit(LightPathState &p, size_t slot) {
     if (area) {
         const Triangle &T = scene.triangles[e.triangle];
         start_path_at(p, scene.spawn(e.pos, e.triangle, e.dir));
-        p.medium = T.transition ? T.medium_after(-1, e.dir) : emission_medium_triangle_[e.triangle];
+        p.medium = T.transition ? T.medium_after(-1, e.dir) : scene.triangle_emission_medium(e.triangle);
     } else {
         // A point or spot light's path starts off the light; a directional light's on its disk.
         start_path_at(p, l.type == LightType::Directional ? RayStart{e.pos, 0.0}
                                                            : off_the_light(scene, e.pos, e.dir));
-        p.medium = emission_medium_light_[e.light];
+        p.medium = scene.light_emission_medium(e.light);
     }
     p.dir = e.dir;
     p.power = e.power;

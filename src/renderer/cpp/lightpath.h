@@ -8,7 +8,8 @@
 // API (stable; other methods build on it)
 // ---------------------------------------
 //   LightPaths(scene, max_depth, rr_depth, seed, paths_per_iteration, threads, max_records)
-//   set_emission_media(per_triangle, per_light)  medium each light emits into (-1 = vacuum)
+//       paths start in the medium the scene says each light emits into
+//       (Scene::set_emission_media)
 //   set_recording(vertices, segments, complete)  what to record (default: vertices where a
 //       camera path can connect or gather, and segments); `complete` records every vertex,
 //       the lights' own and delta ones included, with their densities (path_records.h)
@@ -135,9 +136,6 @@ public:
     LightPaths(std::shared_ptr<const Scene> scene, int max_depth, int rr_depth, uint64_t seed,
                int64_t paths_per_iteration, int threads, int64_t max_records);
 
-    // Medium at each emitting triangle's front side and at each point/spot light.
-    void set_emission_media(const std::vector<int32_t> &per_triangle, const std::vector<int32_t> &per_light);
-
     size_t capacity() const { return paths_.size(); }
     int64_t paths_per_iteration() const { return int64_t(paths_.size()); }
     int max_depth() const { return depth_.max_depth(); }
@@ -194,7 +192,6 @@ private:
     std::vector<LightPathState> paths_;
     std::vector<DensityTrack> tracks_;  // complete subpaths: one per path
     std::vector<int32_t> active_;
-    std::vector<int32_t> emission_medium_triangle_, emission_medium_light_;
     // One optional vertex and segment per active path and pass.
     std::vector<PathVertex> slot_vertex_;
     std::vector<MediumSegment> slot_segment_;

@@ -105,7 +105,6 @@ static void bind_lt(nb::module_ &m) {
     bind_kernel<LightPaths>(m, "LightPaths")
         .def(nb::init<std::shared_ptr<const Scene>, int, int, uint64_t, int64_t, int, int64_t>(), "scene"_a,
              "max_depth"_a, "rr_depth"_a, "seed"_a, "paths_per_iteration"_a, "threads"_a, "max_records"_a)
-        .def("set_emission_media", &LightPaths::set_emission_media, "per_triangle"_a, "per_light"_a)
         .def("set_recording", &LightPaths::set_recording, "vertices"_a, "segments"_a, "complete"_a = false)
         .def_prop_ro("paths_per_iteration", &LightPaths::paths_per_iteration)
         .def("vertices", [](const LightPaths &lp) { return vertex_arrays(lp.vertices()); })

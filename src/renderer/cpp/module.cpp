@@ -163,6 +163,34 @@ static void add_scene(nb::module_ &m) {
              }, "direction"_a)
         .def_prop_ro("scene_center",
                      [](const Scene &s) { return std::array<double, 3>{s.scene_center.x, s.scene_center.y, s.scene_center.z}; })
+        .def("set_emission_media",
+             [](Scene &s, Array<int32_t> per_triangle, Array<int32_t> per_light) {
+                 s.set_emission_media({per_triangle.data(), per_triangle.data() + per_triangle.size()},
+                                      {per_light.data(), per_light.data() + per_light.size()});
+             }, "per_triangle"_a, "per_light"_a)
+        .def("emission_media",
+             [](const Scene &s) {
+                 std::vector<int32_t> per_triangle(s.triangles.size()), per_light(s.lights.size());
+                 for (size_t i = 0; i < per_triangle.size(); ++i) per_triangle[i] = s.triangle_emission_medium(int(i));
+                 for (size_t i = 0; i < per_light.size(); ++i) per_light[i] = s.light_emission_medium(int(i));
+                 const size_t triangles = per_triangle.size(), lights = per_light.size();
+                 return std::make_tuple(to_numpy(std::move(per_triangle), {triangles}),
+                                        to_numpy(std::move(per_light), {lights}));
+             })
+        // The medium where the straight walk from the camera to each of `points` (n, 3) ends.
+        .def("walk_media",
+             [](const Scene &s, Array<double> points) {
+                 if (points.ndim() != 2 || points.shape(1) != 3) throw std::invalid_argument("points must be (n, 3) float64");
+                 const size_t n = points.shape(0);
+                 std::vector<int32_t> media(n);
+                 const double *p = points.data();
+                 // Each walk visits every boundary triangle: many points (a large emitting mesh)
+                 // are shared among the threads.
+#pragma omp parallel for schedule(dynamic, 16)
+                 for (int64_t i = 0; i < int64_t(n); ++i)
+                     media[size_t(i)] = s.walk_medium(Vec3(p[3 * i], p[3 * i + 1], p[3 * i + 2]));
+                 return to_numpy(std::move(media), {n});
+             }, "points"_a)
         // Probes for tests: estimators evaluated in isolation.
         .def("transmittance",
              [](const Scene &s, int medium, V3 origin, V3 direction, double tmax, uint64_t seed, int64_t n) {

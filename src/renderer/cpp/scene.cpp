@@ -1,5 +1,9 @@
 #include "scene.h"
 
+#include <stdexcept>
+#include <string>
+#include <utility>
+
 namespace pgi {
 
 void Scene::finalize() {
@@ -43,6 +47,48 @@ void Scene::finalize() {
         power.push_back(w);
     }
     light_selection = Distribution1D(power);
+    // Vacuum until set_emission_media says otherwise (a scene built by hand, in tests).
+    light_emission_medium_.resize(lights.size(), -1);
+    triangle_emission_medium_.resize(triangles.size(), -1);
+}
+
+void Scene::set_emission_media(std::vector<int> per_triangle, std::vector<int> per_light) {
+    if (per_triangle.size() != triangles.size() || per_light.size() != lights.size())
+        throw std::invalid_argument("emission media: one entry per triangle and per light expected");
+    for (const std::vector<int> *given : {&per_triangle, &per_light})
+        for (int m : *given)
+            if (m < -1 || m >= int(media.size()))
+                throw std::invalid_argument("emission media: no medium " + std::to_string(m));
+    triangle_emission_medium_ = std::move(per_triangle);
+    light_emission_medium_ = std::move(per_light);
+}
+
+int Scene::walk_medium(const Vec3 &p) const {
+    const Vec3 start = camera.origin, d = p - start;  // the segment: start + t d, t in [0, 1]
+    std::vector<std::pair<double, int>> crossings;  // (t, triangle)
+    for (size_t i = 0; i < triangles.size(); ++i) {
+        const Triangle &tri = triangles[i];
+        if (!tri.transition) continue;
+        // Moller-Trumbore, barycentrics and t bounds inclusive.
+        const Vec3 pvec = cross(d, tri.e2);
+        const double det = dot(tri.e1, pvec);
+        if (det == 0) continue;  // the segment runs in the triangle's plane: no crossing
+        const double inv = 1 / det;
+        const Vec3 tvec = start - tri.p0;
+        const double u = dot(tvec, pvec) * inv;
+        if (u < 0 || u > 1) continue;
+        const Vec3 qvec = cross(tvec, tri.e1);
+        const double v = dot(d, qvec) * inv;
+        if (v < 0 || u + v > 1) continue;
+        const double t = dot(tri.e2, qvec) * inv;
+        if (t < 0 || t > 1) continue;
+        crossings.emplace_back(t, int(i));
+    }
+    std::sort(crossings.begin(), crossings.end());
+    int medium = camera.medium;
+    for (const auto &crossing : crossings)
+        medium = triangles[size_t(crossing.second)].medium_after(medium, d);
+    return medium;
 }
 
 LightSample Scene::sample_light(const Vec3 &p, double u_pick, double u1, double u2, double u3) const {

@@ -126,6 +126,22 @@ public:
 
     void finalize();
 
+    // The medium each light emits into (-1: vacuum), decided once by the scene's rule
+    // (docs/scene-format.md, "Where lights emit"; renderer/engine.py) and set from Python:
+    // per light (point, spot and directional lights read it) and per triangle (emitting
+    // triangles that name no medium read it; those that name one emit into their exterior).
+    void set_emission_media(std::vector<int> per_triangle, std::vector<int> per_light);
+    int light_emission_medium(int light) const { return light_emission_medium_[size_t(light)]; }
+    int triangle_emission_medium(int tri) const { return triangle_emission_medium_[size_t(tri)]; }
+
+    // The medium where the straight walk from the camera to p ends: it starts in the camera's
+    // medium and applies Triangle::medium_after at every crossing of a triangle that names a
+    // medium, nearest first (ties: lower triangle index first), the rule every ray follows.
+    // Brute force in double precision with edges inclusive: a crossing through an edge that
+    // two triangles share is counted on both, which the absolute transition rule makes
+    // harmless. Deterministic, for the few points a scene asks about.
+    int walk_medium(const Vec3 &p) const;
+
     // Where a ray leaving point p of triangle `tri` in direction d starts: an offset off the
     // surface, on d's side, so that Embree does not find the surface again.
     RayStart spawn(const Vec3 &p, int tri, const Vec3 &d) const {
@@ -159,6 +175,8 @@ public:
 
 private:
     std::vector<int> light_of_emitter_;
+    // Sized by finalize (vacuum) until set_emission_media sets them.
+    std::vector<int> light_emission_medium_, triangle_emission_medium_;
 };
 
 }  // namespace pgi

@@ -29,7 +29,7 @@ from ..errors import PgiError
 from ..scene.model import Scene
 from ..tracer import EmbreeTracer
 from ..wavefront import Wavefront
-from .lightpath import emission_media, warn_about_peaked_phase_functions
+from .lightpath import check_emission_media, warn_about_peaked_phase_functions
 from .params import MethodParams
 
 
@@ -94,8 +94,7 @@ class NativeMethod:
             max_records,
         )
         kernel.set_recording(vertices, segments)
-        per_triangle, per_light = emission_media(self.native, self.scene, self.seed)
-        kernel.set_emission_media(per_triangle.tolist(), per_light.tolist())
+        check_emission_media(self.native)  # the kernel reads each light's medium from its scene
         return _LightPathsWavefront(kernel, self.tracer, paths_param, self.wavefronts)
 
     def run_iteration(self, iteration: int) -> None:

@@ -10,16 +10,19 @@ import numpy as np
 from renderer.errors import shorten_repr as _describe
 from renderer.scene.document import KeyPath
 from renderer.scene.limits import MAX_LIGHT, MIN_LENGTH
+from renderer.scene.media import read_stated_medium
 from renderer.scene.model import DirectionalLight, Light, PointLight, Shape, SpotLight
 from renderer.scene.validation import Validator, or_empty
 
 
 def read_lights(val: Validator, doc: dict) -> list[Light]:
-    """The optional ``lights`` section (absent or empty: no lights)."""
+    """The optional ``lights`` section (absent or empty: no lights). Read after ``media``,
+    whose names a light's ``medium`` refers to."""
     lights_doc = or_empty(doc.get("lights"), [])
     if not isinstance(lights_doc, list):
         val.fail(("lights",), f"expected a list of lights, got {_describe(lights_doc)}")
-    return [_light(val, i, d) for i, d in enumerate(lights_doc)]
+    media = val.table(doc, "media")
+    return [_light(val, i, d, media) for i, d in enumerate(lights_doc)]
 
 
 def check_something_emits(val: Validator, shapes: list[Shape], lights: list[Light]) -> None:
@@ -40,27 +43,29 @@ def _emits(light: Light) -> bool:
     return any(c > 0 for c in power)
 
 
-def _light(val: Validator, i: int, d: Any) -> Light:
+def _light(val: Validator, i: int, d: Any, media: dict) -> Light:
     p: KeyPath = ("lights", i)
     kind = val.kind(d, p, ("point", "spot", "directional"))
     if kind == "point":
-        val.mapping(d, p, required=("type", "position", "intensity"))
+        val.mapping(d, p, required=("type", "position", "intensity"), optional=("medium",))
         return PointLight(
             val.vec3(d["position"], p + ("position",)),
             val.rgb(d["intensity"], p + ("intensity",), hi=MAX_LIGHT),
+            read_stated_medium(val, d, p, media),
         )
     if kind == "directional":
-        val.mapping(d, p, required=("type", "direction", "irradiance"))
+        val.mapping(d, p, required=("type", "direction", "irradiance"), optional=("medium",))
         direction = val.vec3(d["direction"], p + ("direction",), nonzero=True)
         return DirectionalLight(
             direction / np.linalg.norm(direction),
             val.rgb(d["irradiance"], p + ("irradiance",), hi=MAX_LIGHT),
+            read_stated_medium(val, d, p, media),
         )
     val.mapping(
         d,
         p,
         required=("type", "position", "target", "intensity"),
-        optional=("cutoff_angle", "beam_width"),
+        optional=("cutoff_angle", "beam_width", "medium"),
     )
     pos, target = val.vec3(d["position"], p + ("position",)), val.vec3(d["target"], p + ("target",))
     if not np.max(np.abs(target - pos)) >= MIN_LENGTH:
@@ -77,4 +82,4 @@ def _light(val: Validator, i: int, d: Any) -> Light:
         float32=True,
     )
     intensity = val.rgb(d["intensity"], p + ("intensity",), hi=MAX_LIGHT)
-    return SpotLight(pos, target, intensity, cutoff, beam)
+    return SpotLight(pos, target, intensity, cutoff, beam, read_stated_medium(val, d, p, media))

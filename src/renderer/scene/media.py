@@ -20,7 +20,7 @@ from renderer.scene.limits import (
     MAX_MIE_WORK,
     MAX_VOXEL_DEPTH,
 )
-from renderer.scene.model import Medium, Phase
+from renderer.scene.model import VACUUM, Medium, Phase
 from renderer.scene.validation import Validator
 
 PHASES = ("isotropic", "hg", "rayleigh", "tabulated", "mie")
@@ -28,7 +28,25 @@ PHASES = ("isotropic", "hg", "rayleigh", "tabulated", "mie")
 
 def read_media(val: Validator, doc: dict) -> dict[str, Medium]:
     """The ``media`` section: name -> medium (absent or empty: none)."""
-    return {k: _medium(val, k, v) for k, v in val.table(doc, "media").items()}
+    table = val.table(doc, "media")
+    if VACUUM in table:
+        val.fail(
+            ("media", VACUUM),
+            f"the name {VACUUM!r} is reserved: a light's `medium: {VACUUM}` says it sits in no "
+            "medium; name this medium otherwise",
+        )
+    return {k: _medium(val, k, v) for k, v in table.items()}
+
+
+def read_stated_medium(val: Validator, d: dict, p: KeyPath, media: dict) -> str | None:
+    """The ``medium`` a light or emitting shape ``d`` (at ``p``) states it emits into: a name
+    from ``media``, or VACUUM; None where it states none (absent or null)."""
+    v = d.get("medium")
+    if v is None:
+        return None
+    if v == VACUUM:
+        return VACUUM
+    return val.name_ref(v, p + ("medium",), media, "medium")
 
 
 def _medium(val: Validator, name: str, d: Any) -> Medium:

@@ -311,9 +311,24 @@ def to_mitsuba_dict(scene: Scene, integrator: str = "volpath") -> dict[str, Any]
     for i, (s, keep) in enumerate(zip(scene.shapes, kept_faces(scene), strict=True)):
         if keep.any():
             d[f"shape_{i:03d}"] = _mesh(mi, s, s.faces[keep], bsdfs, media)
-    for i, light in enumerate(scene.lights):
+    for i, (light, medium) in enumerate(zip(scene.lights, _light_media(scene), strict=True)):
         d[f"light_{i:03d}"] = _light(mi, light)
+        if medium is not None:  # where the light sits, as ours has it (emitter.get_medium())
+            d[f"light_{i:03d}"]["medium"] = media[medium]
     return d
+
+
+def _light_media(scene: Scene) -> list[str | None]:
+    """The medium each of the scene's lights emits into (None: vacuum), by the scene's rule
+    (docs/scene-format.md, "Where lights emit"), which the native scene computes."""
+    if not scene.media:
+        return [None] * len(scene.lights)
+    from renderer.engine import build_native_scene
+
+    native = build_native_scene(scene)
+    names = list(native.medium_ids)
+    per_light = native.emission.per_light[native.light_ids]
+    return [names[m] if m >= 0 else None for m in per_light]
 
 
 def load_mitsuba_scene(scene: Scene, integrator: str = "volpath") -> Any:

@@ -12,6 +12,9 @@ Conventions (each matches Mitsuba 3 and has a parity test):
   its new direction points to; a shape that names neither leaves the path in
   the medium it was in (walls inside fog reflect back into the fog).
 - Area emission is one-sided: radiance leaves the front (normal) side only.
+- The medium a light emits into is the one it states (``medium``; ``VACUUM`` for none), an
+  emitter that names media emits into its exterior, and otherwise the scene's rule decides
+  (docs/scene-format.md, "Where lights emit"; renderer.engine computes it).
 - Density grids are indexed ``density[x, y, z]`` (as OpenVDB's copyToArray
   gives them); voxel (i, j, k) has its centre at ((i, j, k) + 0.5) / res in
   the unit cube, which ``to_world`` places in the scene. Values are
@@ -27,6 +30,9 @@ from pathlib import Path
 import numpy as np
 
 RGB = tuple[float, float, float]
+
+# The name a light states for no medium; no medium of the `media` table may take it.
+VACUUM = "vacuum"
 
 
 @dataclass(frozen=True)
@@ -101,12 +107,16 @@ class Shape:
     # one side has vacuum on the other.
     interior: str | None = None
     exterior: str | None = None
+    # Emitters naming neither: the medium stated to emit into (a name from media, or VACUUM);
+    # None: the scene's rule decides.
+    medium: str | None = None
 
 
 @dataclass(frozen=True)
 class PointLight:
     position: np.ndarray
     intensity: RGB  # W/sr
+    medium: str | None = None  # stated: a name from media, or VACUUM; None: the rule's
 
 
 @dataclass(frozen=True)
@@ -116,12 +126,14 @@ class SpotLight:
     intensity: RGB  # W/sr on the axis
     cutoff_angle: float = 20.0  # degrees: no light outside
     beam_width: float = 15.0  # degrees: full intensity inside; linear falloff in angle between
+    medium: str | None = None  # stated: a name from media, or VACUUM; None: the rule's
 
 
 @dataclass(frozen=True)
 class DirectionalLight:
     direction: np.ndarray  # direction the light travels, normalised
     irradiance: RGB  # W/m^2 on a surface facing the light
+    medium: str | None = None  # stated: a name from media, or VACUUM; None: the rule's
 
 
 Light = PointLight | SpotLight | DirectionalLight

@@ -13,6 +13,7 @@ from renderer.scene import primitives
 from renderer.scene import transform as xf
 from renderer.scene.document import KeyPath
 from renderer.scene.limits import MAX_COORDINATE, MAX_LIGHT, MAX_SCENE_SIZE, MIN_SCENE_SIZE
+from renderer.scene.media import read_stated_medium
 from renderer.scene.model import Material, Medium, Shape
 from renderer.scene.validation import Validator
 
@@ -71,7 +72,7 @@ def read_shapes(
 def _shape(val: Validator, i: int, d: Any, materials: dict, media: dict) -> Shape:
     p: KeyPath = ("shapes", i)
     kind = val.kind(d, p, ("rectangle", "cube", "sphere", "mesh"))
-    common = ("name", "transform", "emission", "interior", "exterior")
+    common = ("name", "transform", "emission", "interior", "exterior", "medium")
     extra = {"sphere": ("subdivisions",), "mesh": ("file",)}.get(kind, ())
     val.mapping(d, p, required=("type", "material") + (("file",) if kind == "mesh" else ()),
                 optional=common + extra)  # fmt: skip
@@ -112,11 +113,25 @@ def _shape(val: Validator, i: int, d: Any, materials: dict, media: dict) -> Shap
     def medium_ref(key: str) -> str | None:
         return None if d.get(key) is None else val.name_ref(d[key], p + (key,), media, "medium")
 
+    interior, exterior = medium_ref("interior"), medium_ref("exterior")
+    stated = read_stated_medium(val, d, p, media)
+    if stated is not None and emission is None:
+        val.fail(
+            p + ("medium",),
+            "only an emitter (a shape with emission) states the medium it emits into; a shape "
+            "bounds a medium with interior and exterior",
+        )
+    if stated is not None and (interior is not None or exterior is not None):
+        val.fail(
+            p + ("medium",),
+            "an emitter that names interior or exterior emits into its exterior (its front "
+            "side): remove medium, or name the medium there as exterior",
+        )
     return Shape(
         name=val.string(d.get("name", f"{kind}{i}"), p + ("name",)),
         vertices=v, faces=f,
         material=val.name_ref(d["material"], p + ("material",), materials, "material"),
-        emission=emission, interior=medium_ref("interior"), exterior=medium_ref("exterior"),
+        emission=emission, interior=interior, exterior=exterior, medium=stated,
     )  # fmt: skip
 
 
