@@ -20,10 +20,11 @@
 // with power-heuristic weights (beta = 2) between light sampling and direction sampling, both
 // densities in solid angle at x_k: w_light = p_light^2 / (p_light^2 + p_dir^2), w_dir the
 // complement; delta lights and delta BSDF events take weight 1. T of a shadow ray is the
-// closed form in homogeneous media and the scene's transmittance estimator in grids. Depth and
-// roulette follow Mitsuba's volpath: a path has fewer than max_depth real scattering events
-// (null crossings and null collisions are free), and after rr_depth events it survives with
-// probability min(max(beta) eta^2, 0.95) and is divided by it.
+// closed form in homogeneous media and the scene's transmittance estimator in grids. Depth
+// follows Mitsuba's volpath: a path has fewer than max_depth real scattering events (null
+// crossings and null collisions are free). After rr_depth events a path survives with
+// probability min(max(beta) eta^2, 1) (or Mitsuba's cap of 0.95: wavefront.h,
+// survive_roulette) and is divided by it.
 //
 // Step order: one iteration is a wave of `spp_per_wave` paths per pixel, run by the passes of
 // passes.h on each lane:
