@@ -95,16 +95,26 @@ def test_mitsuba_agrees_where_it_is_trustworthy(tau, unbiased_low):
     assert ok, f"tau {tau}: {why}"
 
 
-def test_cloud_renders_alike_from_both_ends():
+@pytest.fixture(scope="module")
+def cloud_pt():
+    return ours(get_method("pt"), load_small("cloud", 8, 8), 12, seed=1, spp_per_wave=32)
+
+
+@pytest.mark.parametrize("other", ["lt", "bdpt"])
+def test_cloud_renders_alike_from_both_ends(cloud_pt, other):
     """The shipped cloud (optical depths of 140-240 through its core, albedo 0.995, g 0.85)
-    at 8x8: pt and lt agree on the image mean; both see the cloud (far from black)."""
+    at 8x8: lt and bdpt agree with pt on the image mean; all see the cloud (far from black).
+    (bdpt's weights in this grid need exact free-flight densities: with a cruder stand-in its
+    iterations were heavy-tailed, docs/methods.md.)"""
     scene = load_small("cloud", 8, 8)
-    pt = ours(get_method("pt"), scene, 6, seed=1, spp_per_wave=32)
-    lt = ours(get_method("lt"), scene, 6, seed=2, light_paths=8192)
-    result = agreement(pt.image_mean(), lt.image_mean())
+    if other == "lt":
+        run = ours(get_method("lt"), scene, 12, seed=2, light_paths=8192)
+    else:
+        run = ours(get_method("bdpt"), scene, 12, seed=3, spp_per_iteration=16)
+    result = agreement(cloud_pt.image_mean(), run.image_mean())
     assert result.passes, result
-    assert pt.image_mean().mean.mean() > 0.1
-    assert np.all(np.isfinite(pt.samples)) and np.all(np.isfinite(lt.samples))
+    assert cloud_pt.image_mean().mean.mean() > 0.1
+    assert np.all(np.isfinite(cloud_pt.samples)) and np.all(np.isfinite(run.samples))
 
 
 def test_cloud_optical_depth_is_a_few_hundred():
