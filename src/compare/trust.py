@@ -7,9 +7,9 @@ against a short render of one of pgi's unbiased methods (the *check*: K independ
 iterations) and, where it was rendered in two independent halves with their own variances,
 against itself. Three findings make it untrustworthy, each reported in one line:
 
-- **dead pixels**: more than ``DEAD_FRACTION`` of the pixels where the check sees light (its
-  luminance ``Z_LIT`` standard errors above 0), and at least ``DEAD_MIN_PIXELS``, are exactly
-  0 or not finite in the reference;
+- **dead pixels**: more than ``DEAD_FRACTION`` of the pixels where the check sees light (their
+  mean above 0, their 4x4 block's ``Z_LIT`` standard errors above 0), and at least
+  ``DEAD_MIN_PIXELS``, are exactly 0 or not finite in the reference;
 - **a mean outside the check's confidence interval**: the image mean of a channel or of the
   luminance differs by more than ``Z_MEAN`` combined standard errors (the check's from its
   iterations, Student's t mapped to a normal score; the reference's from its passes);
@@ -102,14 +102,23 @@ def normal_score(t: float, dof: int) -> float:
 
 def dead_pixels(reference: np.ndarray, check: Estimate) -> tuple[int, int]:
     """(pixels where the check sees light and the reference is exactly 0 or not finite, pixels
-    where the check sees light). Light: the check's luminance ``Z_LIT`` standard errors above
-    0 (the channels' errors added, as if fully correlated: an upper bound)."""
+    where the check sees light). The check sees light in a pixel whose own mean is above 0 and
+    whose ``HALVES_BLOCK`` x ``HALVES_BLOCK`` block's luminance lies ``Z_LIT`` standard errors
+    above 0 (blocks, because a short check's single pixels are too noisy to tell)."""
     lum = check.mean @ LUMINANCE
-    if check.variance is None:
-        lit = lum > 0
-    else:
+    lit = lum > 0
+    if check.variance is not None:
+        b = HALVES_BLOCK
+        h, w = lum.shape
+        hb, wb = -(-h // b), -(-w // b)  # partial blocks at the edges count as blocks
+        pad = ((0, hb * b - h), (0, wb * b - w))
+        block_sum = np.pad(lum, pad).reshape(hb, b, wb, b).sum(axis=(1, 3))
+        # the channels' errors added, as if fully correlated (an upper bound)
         se = np.sqrt(np.maximum(check.variance, 0.0)) @ LUMINANCE
-        lit = (se > 0) & (lum > Z_LIT * se)
+        block_var = np.pad(se**2, pad).reshape(hb, b, wb, b).sum(axis=(1, 3))
+        block_lit = (block_var > 0) & (block_sum > Z_LIT * np.sqrt(block_var))
+        block_lit |= (block_var == 0) & (block_sum > 0)  # noise-free light (a lamp seen directly)
+        lit &= np.repeat(np.repeat(block_lit, b, axis=0), b, axis=1)[:h, :w]
     ref = np.asarray(reference, np.float64)
     dead = lit & (np.all(ref == 0, axis=-1) | ~np.all(np.isfinite(ref), axis=-1))
     return int(dead.sum()), int(lit.sum())
