@@ -65,17 +65,21 @@ def ours(method_cls, scene: Scene, iterations: int, seed: int = 1, **params) -> 
 
 
 def mitsuba(
-    scene: Scene, passes: int, spp: int, seed: int = 1000, integrator: str = "volpath"
+    scene: Scene, passes: int, spp: int, seed: int = 1000, integrator: str | None = None
 ) -> Estimate:
-    """Mitsuba images of the same scene (volpath unless said), one per seed."""
+    """Mitsuba images of the same scene, one per seed: as the references render it (volpath;
+    one grey render per channel where extinction differs between channels), or by
+    ``integrator`` alone."""
     from renderer.mitsuba_env import import_mitsuba
+    from renderer.reference import load_reference_scenes, mitsuba_pass
     from renderer.scene.mitsuba_export import load_mitsuba_scene
 
     mi = import_mitsuba()
-    ms = load_mitsuba_scene(scene, integrator)
-    images = [
-        np.array(mi.render(ms, spp=spp, seed=seed + i), dtype=np.float64) for i in range(passes)
-    ]
+    if integrator is None:
+        mscenes = load_reference_scenes(scene)
+    else:
+        mscenes = [load_mitsuba_scene(scene, integrator)]
+    images = [mitsuba_pass(mi, mscenes, spp, seed + i) for i in range(passes)]
     return Estimate(np.stack(images))
 
 

@@ -874,7 +874,7 @@ def test_index_says_what_the_methods_are_and_flags_a_target_near_the_reference(
     note = _methods_note(["pt", "pt-ratio", "mitsuba"], {"pt-ratio": "pt"})
     assert note.count("<b>pt</b>: volumetric path tracing") == 1 and "pt-ratio" not in note
     assert "<b>mitsuba</b>: Mitsuba 3 volpath" in note and "against the pgi methods" in note
-    assert "volpathmis" in note and "Mitsuba's too" not in _methods_note(["pt"], {})
+    assert "grey render per channel" in note and "Mitsuba's too" not in _methods_note(["pt"], {})
     tables = tmp_path / "tables"
     tables.mkdir()
     for csv in (report / "tables").glob("*.csv"):

@@ -62,7 +62,7 @@ def merge_reference(
         **err,
         "halves": [str(half_a), str(half_b)],
         "spp_per_half": [s.get("spp") for s in sides],
-        # e.g. "mitsuba 3.9.1 volpath" (volpathmis for media with chromatic extinction)
+        # e.g. "mitsuba 3.9.1 volpath" (one grey render per channel for chromatic extinction)
         "renderer": " / ".join(sorted({str(s["renderer"]) for s in sides if s.get("renderer")})),
         "seeds": [s.get("seed") for s in sides],
         "render_seconds": sum(float(s.get("render_seconds") or 0.0) for s in sides),

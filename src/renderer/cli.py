@@ -151,7 +151,7 @@ def cmd_reference(args: argparse.Namespace) -> int:
     overrides, _ = split_sets(args.set, "reference")
     _refuse_overwriting_the_scene(args.scene, [out], overrides)
     check_threads(args.threads)
-    check_overrides("mitsuba", overrides)  # the reference is Mitsuba's (volpath or volpathmis)
+    check_overrides("mitsuba", overrides)  # the reference is Mitsuba's (volpath)
     scene = load_scene(args.scene, overrides)
     bar = Progress(None, args.spp, enabled=not args.quiet)
     image, info = render_reference(

@@ -1,6 +1,6 @@
-"""Ground truth: Mitsuba 3 renders of a scene (box filter, same triangles) by ``volpath``, or
-by ``volpathmis`` where a medium's extinction differs between channels (see
-``reference_integrator``).
+"""Ground truth: Mitsuba 3 renders of a scene (box filter, same triangles) by ``volpath``;
+where a medium's extinction differs between channels, one grey render per channel (see
+``grey_channel_scenes``).
 
 Large sample counts are split into passes of at most 256 spp, each with its own seed, and
 averaged in float64: this bounds memory in the LLVM variant (one lane per sample). Nothing is
@@ -12,12 +12,17 @@ from __future__ import annotations
 import hashlib
 import time
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
 from renderer.errors import PgiError
 from renderer.mitsuba_env import import_mitsuba, set_threads
-from renderer.scene.mitsuba_export import load_mitsuba_scene, reference_integrator
+from renderer.scene.mitsuba_export import (
+    grey_channel_scenes,
+    has_chromatic_extinction,
+    load_mitsuba_scene,
+)
 from renderer.scene.model import Scene
 
 MAX_SPP_PER_PASS = 256
@@ -50,6 +55,21 @@ def check_reference_fits_in_memory(scene: Scene, spp: int) -> None:
         )
 
 
+def load_reference_scenes(scene: Scene) -> list[Any]:
+    """The Mitsuba scenes a reference of ``scene`` renders (with volpath): ``scene`` itself, or
+    where a medium's extinction differs between channels, one grey scene per channel."""
+    chromatic = has_chromatic_extinction(scene)
+    return [load_mitsuba_scene(s) for s in (grey_channel_scenes(scene) if chromatic else [scene])]
+
+
+def mitsuba_pass(mi: Any, mscenes: list[Any], spp: int, seed: int) -> np.ndarray:
+    """One Mitsuba image at ``spp``: of the one scene, or channel c from scene c of three."""
+    images = [np.array(mi.render(m, spp=spp, seed=seed), dtype=np.float64) for m in mscenes]
+    if len(images) == 1:
+        return images[0]
+    return np.stack([images[c][..., c] for c in range(3)], axis=-1)
+
+
 def render_reference(
     scene: Scene,
     spp: int,
@@ -69,16 +89,17 @@ def render_reference(
     if threads is not None:
         set_threads(threads)
     t0 = time.perf_counter()
-    integrator = reference_integrator(scene)
-    mscene = load_mitsuba_scene(scene, integrator)
+    chromatic = has_chromatic_extinction(scene)
+    mscenes = [
+        load_mitsuba_scene(s) for s in (grey_channel_scenes(scene) if chromatic else [scene])
+    ]
     t1 = time.perf_counter()
     per_pass = spp_per_pass(scene, spp)
     total = np.zeros((scene.film.height, scene.film.width, 3))
     done = 0
     for k in range((spp + per_pass - 1) // per_pass):
         n = min(per_pass, spp - done)
-        img = np.array(mi.render(mscene, spp=n, seed=derive_seed("reference", seed, k)))
-        total += n * img.astype(np.float64)
+        total += n * mitsuba_pass(mi, mscenes, n, derive_seed("reference", seed, k))
         done += n
         if on_pass:
             on_pass(time.perf_counter() - t1, done)
@@ -89,7 +110,8 @@ def render_reference(
     import drjit as dr
 
     info = {
-        "renderer": f"mitsuba {mi.__version__} {integrator}",
+        "renderer": f"mitsuba {mi.__version__} volpath"
+        + (" (one grey render per channel)" if len(mscenes) > 1 else ""),
         "variant": mi.variant(),
         "passes": k + 1,
         "spp_per_pass": per_pass,

@@ -167,8 +167,9 @@ def _methods_note(methods: list[str], bases: dict[str, str]) -> str:
     text = f'<p class="note"><b>Methods.</b> {"; ".join(items)}.'
     if "mitsuba" in seen:
         text += (
-            " The reference is Mitsuba's too (volpath, or volpathmis where a medium's "
-            "extinction differs between colour channels; each scene page names it): mitsuba "
+            " The reference is Mitsuba's too (volpath, one grey render per channel "
+            "where a medium's extinction differs between colour channels; each scene page "
+            "names it): mitsuba "
             "shares its conventions, and on most scenes its integrator, while the pgi methods "
             "are measured across two renderers, so a systematic difference between them (the "
             "parity tests bound it within their noise) would count against the pgi methods only."
