@@ -8,7 +8,8 @@ equal time, several seeds each, against a reference rendered by pgi's pt.
 
 `cbox-fog-dense` is cbox-fog with sigma_t 50, albedo 0.999 and unbounded depth (an optical
 depth of about 100 across the box). Mitsuba's volpath is no reference for either scene (it
-returns 0 in the dense box; docs/methods.md, "Where Mitsuba disagrees"), so the reference is
+returns 0 in the dense box, and its cloud is ~140x as noisy per sample as pt's, with heavy
+tails; docs/methods.md, "Where Mitsuba disagrees"), so the reference is
 pt with the new rule in two independent halves of ``--reference-iterations`` iterations each
 (cached under bench/.cache/), its own error estimated from the halves and printed first.
 
