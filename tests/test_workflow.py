@@ -96,7 +96,11 @@ def test_outputs(study: Path) -> None:
     assert len(runs) == 1 * 2 * 2 * 3  # scenes x methods x seeds x budgets
     assert set(runs.method) == {"pt", "lt"}
     assert runs.render_seconds.gt(0).all() and runs.relmse.gt(0).all()
-    assert runs.ref_ok.all()
+    # every MSE-type error also with the reference's own removed, and its uncertainty
+    for m in ("mse", "rmse", "relmse", "relmse_trimmed"):
+        assert runs[f"{m}_corrected"].notna().all() and runs[f"{m}_u"].gt(0).all(), m
+    summary = pd.read_csv(rep / "tables" / "summary.csv")
+    assert summary.determined.all()  # the fake reference is far finer than the fake methods
     assert runs.wall_seconds.notna().all() and runs.max_rss_mb.notna().all()
     # errors fall with time for every run
     for _, d in runs.groupby(["method", "seed"]):
@@ -229,10 +233,12 @@ def test_analysis_code_is_an_input_of_the_analysis(study: Path) -> None:
         "src/compare/metrics.py": {
             "compare",
             "reference",
+            "reference_plan",
             "tables",
             "report_scene",
             "report_index",
         },
+        "src/compare/sizing.py": {"reference_plan", "report_scene", "report_index"},
         "src/compare/tables.py": {"tables", "report_scene", "report_index"},
         "src/compare/report/build.py": {"report_scene", "report_index"},
         "src/compare/report/assets/viewer.js": {"report_scene", "report_index"},
@@ -250,12 +256,13 @@ def test_analysis_steps_import_only_the_code_they_list(study: Path) -> None:
     for rule, body in _job_inputs(study):
         found = re.search(r"input: (.*)", body)
         inputs.setdefault(rule, set()).update(found[1].split(", ") if found else ())
-    analysis = ["compare", "reference", "tables", "report_scene", "report_index"]
+    analysis = ["compare", "reference", "reference_plan", "tables", "report_scene", "report_index"]
     env = {"FAKE_PGI_METHODS": "pt,lt,sppm", "PYTHONPROFILEIMPORTTIME": "1"}
     snakemake(study, "--configfile", "cfg.yaml", "--forcerun", *analysis, env=env)
     logs = {
         "compare": study.glob("results/logs/compare/*/*/*.log"),
         "reference": study.glob("results/logs/reference/*/merge.log"),
+        "reference_plan": study.glob("results/logs/reference/*/plan.log"),
         "tables": [study / "results" / "logs" / "tables.log"],
         "report_scene": study.glob("results/logs/report/*.log"),
     }
@@ -541,3 +548,57 @@ def test_another_checkouts_installation_is_refused(tmp_path: Path) -> None:
     assert p.returncode != 0 and len(out) == 1, out
     assert f"imports `compare` from {ROOT / 'src' / 'compare'}" in out[0], out
     assert str(tmp_path / "src") in out[0], out
+
+
+@pytest.fixture(scope="module")
+def sized_study(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The fake study with its reference sized to it ("auto"): a pilot, a plan, the halves."""
+    wd = tmp_path_factory.mktemp("sized")
+    (wd / "scenes" / "alpha").mkdir(parents=True)
+    (wd / "scenes" / "alpha" / "scene.yaml").write_text("# fake scene alpha\n")
+    reference = {"spp": "auto", "pilot_spp": 8, "target": 0.5, "max_seconds": 1.0}
+    write_config(wd / "cfg.yaml", wd / "scenes", reference=reference)
+    snakemake(wd, "--configfile", "cfg.yaml", env={"FAKE_PGI_METHODS": "pt,lt,sppm"})
+    return wd
+
+
+def test_a_sized_reference_follows_its_plan(sized_study: Path) -> None:
+    """The plan bounds the best method's error at the largest budget from the pilot and the
+    runs, and the halves render the samples it asks for (the fake renders 1 ms per spp, so
+    the 1-second cap allows 500 a half); ref.json and the report carry the plan."""
+    folder = sized_study / "results" / "reference" / "alpha"
+    plan = json.loads((folder / "plan.json").read_text())
+    assert plan["how"] == "sized" and plan["best_method"] == "pt" and plan["pilot_spp"] == 8
+    assert plan["spp_cap"] == 500 and plan["spp"] == min(plan["spp_needed"], 500) > 8
+    for h in (0, 1):
+        assert json.loads((folder / f"half{h}.json").read_text())["spp"] == plan["spp"]
+        assert json.loads((folder / f"pilot{h}.json").read_text())["spp"] == 8
+    ref = json.loads((folder / "ref.json").read_text())
+    assert ref["plan"] == plan and ref["variances"] is True
+    assert ref["ref_relmse"] < plan["target"] * plan["best_error_bound"] * 1.5
+    index = (sized_study / "reports" / "index.html").read_text()
+    assert "<td>to the study</td>" in index and "cells determined" in index
+    page = (sized_study / "reports" / "scene-alpha.html").read_text()
+    assert "Sized from a pilot of 8 spp a half" in page
+
+
+def test_a_new_method_resizes_the_reference_not_its_pilot(sized_study: Path) -> None:
+    """The plan reads every method's runs: a method added reruns the plan and the halves
+    (extending their stores), not the pilots; a new cap reruns the plan alone."""
+    env = {"FAKE_PGI_METHODS": "pt,lt,sppm"}
+    write_config(
+        sized_study / "more.yaml",
+        sized_study / "scenes",
+        methods=["pt", "lt", "sppm"],
+        reference={"spp": "auto", "pilot_spp": 8, "target": 0.5, "max_seconds": 1.0},
+    )
+    c = job_counts(snakemake(sized_study, "--configfile", "more.yaml", "-n", env=env).stdout)
+    assert c.get("render") == 2 and c.get("reference_plan") == 1
+    assert c.get("reference_half") == 2 and "reference_pilot" not in c
+    write_config(
+        sized_study / "cap.yaml",
+        sized_study / "scenes",
+        reference={"spp": "auto", "pilot_spp": 8, "target": 0.5, "max_seconds": 2.0},
+    )
+    c = job_counts(snakemake(sized_study, "--configfile", "cap.yaml", "-n", env=env).stdout)
+    assert c.get("reference_plan") == 1 and "render" not in c and "reference_pilot" not in c

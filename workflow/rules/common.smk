@@ -57,6 +57,7 @@ def _compare_code(*modules):
 
 
 MERGE_CODE = _compare_code("runs.py", "metrics.py")  # compare-run, merge-reference
+PLAN_CODE = _compare_code("sizing.py", "runs.py", "metrics.py")  # reference-plan
 TABLE_CODE = _compare_code("tables.py", "convergence.py", "metrics.py")
 ANALYSIS_CODE = sorted(  # the report pages: all of it
     _relative(p)
