@@ -280,6 +280,12 @@ def _reference_row(scene: str, ref: dict[str, Any], cells: pd.DataFrame) -> dict
 # --- scene page -------------------------------------------------------------------------------
 
 
+def _corrected_note(corrected: pd.Series, method: str, budget: str) -> str:
+    """Under an image of the grid, beside its measured relMSE: the corrected one."""
+    value = corrected.get((method, float(budget)), math.nan)
+    return f" ({T.fmt(value)} without the reference's error)" if math.isfinite(value) else ""
+
+
 def _why_absent(method: str) -> str:
     """Why an expected winner has no results: left out of the study, or not a method yet
     (the brief's bdpt, vpl, vrl and vbl)."""
@@ -382,6 +388,11 @@ def build_scene_page(spec: dict[str, Any]) -> None:
     shown = tabs["runs"]
     shown = shown[(shown.scene == scene) & (shown.seed == spec["seed"])]
     seconds = shown.set_index(["method", "budget"])["render_seconds"]
+    corrected = (
+        shown.set_index(["method", "budget"])["relmse_corrected"]
+        if "relmse_corrected" in shown
+        else pd.Series(dtype=float)
+    )
     err = {m: {b: relmse_map(x, ref) for b, x in d.items()} for m, d in imgs.items()}
     lo, hi = I.error_range([x for d in err.values() for x in d.values()])
 
@@ -514,7 +525,8 @@ def build_scene_page(spec: dict[str, Any]) -> None:
     # equal-time grids
     body.append("<h2>Equal-time images</h2>")
     body.append(
-        f'<p class="note">Tonemapped at {ev:+g} EV (sRGB). Error maps: per-pixel relMSE, log '
+        f'<p class="note">Tonemapped at {ev:+g} EV (sRGB). Error maps: per-pixel relMSE as '
+        "measured (a pixel's own error cannot be told from the reference's), log "
         f"scale from {T.fmt(lo)} (black) to {T.fmt(hi)} (yellow), the same for every image "
         f'on this page: <img alt="colour bar" style="vertical-align:middle;width:200px;height:12px"'
         f' src="{I.data_uri_png(I.colorbar_png(lo, hi))}"></p>'
@@ -543,7 +555,8 @@ def build_scene_page(spec: dict[str, Any]) -> None:
             )
             body.append(
                 f'<figure><img alt="{e(m)} at {e(b)} s" src="{uri}">'
-                f"<figcaption>{e(m)} · relMSE {T.fmt(rel)}{off}</figcaption></figure>"
+                f"<figcaption>{e(m)} · relMSE {T.fmt(rel)}{_corrected_note(corrected, m, b)}"
+                f"{off}</figcaption></figure>"
             )
         body.append('<div class="rowlabel">error</div><div></div>')
         for m in methods:
