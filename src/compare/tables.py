@@ -18,11 +18,12 @@ Tables (all written by :func:`write_tables` into one folder):
                          best method per scene and budget marked, cells whose corrected
                          error is not determined flagged
 - ``convergence.csv``    fitted log-log slope of error vs render time per scene x method x metric,
-                         and for MSE and relMSE the slope of the error minus the reference's own
-                         error (``slope_ref_removed``, over points at >= 2x that error); for
+                         and for the MSE-type metrics the slope of the corrected error
+                         (``slope_ref_removed``, over points at >= 4x its uncertainty); for
                          each, the range of the slopes fitted to each seed alone
                          (``*_seed_min``, ``*_seed_max``)
-- ``time_to_error.csv``  time each method needs to reach a target error, and its speed-up vs the
+- ``time_to_error.csv``  time each method needs to reach a target error (corrected errors where
+                         the runs have them), and its speed-up vs the
                          baseline method (target: the baseline's mean error at its largest
                          budget, else the median final error of all methods); extrapolations
                          further than 4x outside the measured times become bounds (``bound``
