@@ -7,7 +7,7 @@
 //   Knaus & Zwicker 2011, "Progressive photon mapping: a probabilistic approach"
 //   (the radius schedule, with a 1D kernel: d = 1).
 //
-// One iteration: light paths from the shared tracer (lightpath.h) leave their
+// One iteration: light paths from the shared tracer (subpaths.h) leave their
 // medium segments as *short* photon beams (each ends at the collision the
 // tracer sampled, or at the surface when none was); camera paths then walk
 // from the camera through media without scattering there, and every medium
@@ -15,7 +15,7 @@
 //   L += T_cam(t) sigma_s(x) phase(theta) * power * T_beam(s) / P_beam(s)
 //        * 1/(2r) / sin(theta) / N_light_paths                      (BB1D)
 // where x is the closest point on the camera segment, s the distance along the
-// beam, T/P the short-beam weight (lightpath.h), r this iteration's radius.
+// beam, T/P the short-beam weight (subpaths.h), r this iteration's radius.
 // Camera transmittance: closed form in homogeneous media; in density grids a
 // distance is sampled by delta tracking and only beams before it are gathered
 // (the camera ray is a short query ray; weight 1 for gray extinction).
@@ -43,7 +43,7 @@
 #include <memory>
 
 #include "beams.h"
-#include "lightpath.h"
+#include "subpaths.h"
 #include "photon_map.h"
 #include "surface_photons.h"
 #include "radius_schedule.h"
