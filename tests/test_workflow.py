@@ -181,14 +181,20 @@ def test_files_a_scene_reads_are_its_inputs(study: Path) -> None:
 
 def test_renderer_code_changes_rerun_what_they_affect(study: Path) -> None:
     """`pgi fingerprint` changes: new render code reruns every render (2 methods x 2 seeds)
-    and no reference; new reference code reruns the references (2 halves) and no render."""
+    and pgi's pt check of the reference (2 halves), whose plan then reruns the halves (a
+    Mitsuba half finds its passes in its store: nothing is rendered again); new reference
+    code reruns the references (2 halves), not the check and no render."""
     env = {"FAKE_PGI_METHODS": "pt,lt,sppm"}
-    cases = [({"FAKE_PGI_RENDER_CODE": "r1"}, 4, 0), ({"FAKE_PGI_REFERENCE_CODE": "f1"}, 0, 2)]
-    for changed, renders, halves in cases:
+    cases = [
+        ({"FAKE_PGI_RENDER_CODE": "r1"}, 4, 2, 2),
+        ({"FAKE_PGI_REFERENCE_CODE": "f1"}, 0, 0, 2),
+    ]
+    for changed, renders, checks, halves in cases:
         c = job_counts(
             snakemake(study, "--configfile", "cfg.yaml", "-n", env={**env, **changed}).stdout
         )
-        assert c.get("render", 0) == renders and c.get("reference_half", 0) == halves, (changed, c)
+        counts = (c.get("render", 0), c.get("reference_check", 0), c.get("reference_half", 0))
+        assert counts == (renders, checks, halves), (changed, c)
 
 
 def test_a_timed_render_runs_alone_on_more_cores(study: Path) -> None:

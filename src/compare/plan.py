@@ -197,6 +197,9 @@ class SceneSpec:
     # samples per reference half; None: sized to the study (compare.sizing) within the cap
     reference_spp: int | None = None
     reference_max_seconds: float = 120.0  # the cap of a sized reference, both halves
+    # what renders its reference: "mitsuba" (checked against pgi's pt, which takes over where
+    # Mitsuba's is not trustworthy) or "pgi" (pgi's pt from the start)
+    reference_source: str = "mitsuba"
 
     @property
     def reference_sized(self) -> bool:
@@ -241,7 +244,8 @@ class Plan:
     # best method's at the largest budget)
     ref_pilot_spp: int = 16
     ref_target: float = 1.0
-    ref_source: str = "mitsuba"
+    # spp per half of pgi's pt check of each reference (and the pilot of a reference pt renders)
+    ref_check_spp: int = 16
     method_args: dict[str, tuple[str, ...]] = field(default_factory=dict)
     variants: dict[str, VariantSpec] = field(default_factory=dict)
     baseline: str = "pt"
@@ -595,6 +599,7 @@ def make_plan(
                 int(entry["reference_spp"]) if "reference_spp" in entry else default_spp
             ),
             reference_max_seconds=float(entry.get("reference_max_seconds", default_cap)),
+            reference_source=str(entry.get("reference_source", ref.get("source", "mitsuba"))),
         )
         if check_here:
             check_scene(scenes[name], loaded=loaded)
@@ -725,6 +730,7 @@ def make_plan(
         seeds=tuple(int(s) for s in config["seeds"]),
         ref_seed=ref_seed,
         ref_pilot_spp=int(ref.get("pilot_spp", 16)),
+        ref_check_spp=int(ref.get("check_spp", 16)),
         ref_target=target,
         method_args=method_args,
         variants={label: variants[label] for label in labels},

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +18,7 @@ import pandas as pd
 from renderer.imageio import read_exr, read_json, write_exr, write_json
 
 from .metrics import METRICS, average_references, compare_images, corrected_errors
+from .trust import Estimate, check_reference, combined, verdict_record
 
 #: sidecar fields copied into every metrics row (missing ones become NaN)
 SIDECAR_FIELDS: tuple[str, ...] = (
@@ -41,12 +42,9 @@ def variance_path(exr: str | Path) -> Path:
     return exr.with_name(f"{exr.stem}.var.exr")
 
 
-# Checks of a merged reference, each given the halves and the info recorded so far and
-# returning what it finds wrong (an empty list: nothing). A check that a reference can be
-# trusted (say, no black pixels where a dense medium should glow) goes here; what it finds is
-# recorded in ref.json under "warnings".
-ReferenceCheck = Callable[[np.ndarray, np.ndarray, dict[str, Any]], list[str]]
-REFERENCE_CHECKS: tuple[ReferenceCheck, ...] = ()
+def source_label(source: str) -> str:
+    """How a reference's source is named to a reader: "Mitsuba", "pgi's pt"."""
+    return {"mitsuba": "Mitsuba", "pgi": "pgi's pt"}.get(source, source)
 
 
 def read_halves(
@@ -60,15 +58,48 @@ def read_halves(
     return images, None
 
 
+def half_estimates(halves: Sequence[str | Path]) -> list[Estimate]:
+    """Two independent halves (a reference's, or a check's) as compare.trust estimates: each
+    image with the variance of its mean and its passes (from its sidecar)."""
+    images, variances = read_halves(halves)
+    passes = [int(read_json(sidecar_path(h)).get("passes") or 0) for h in halves]
+    return [
+        Estimate.from_passes(image, variances[i] if variances else None, passes[i])
+        for i, image in enumerate(images)
+    ]
+
+
+def check_reference_files(
+    halves: Sequence[str | Path], checks: Sequence[str | Path], reference: str
+) -> dict[str, Any]:
+    """Whether the reference made of ``halves`` can be trusted, judged against pgi's pt check
+    (its two halves ``checks``; compare.trust): the verdict as ref.json and plan.json keep it
+    (``reference`` names what is judged, e.g. "Mitsuba's reference of cbox-fog")."""
+    ref = half_estimates(halves)
+    check = half_estimates(checks)
+    verdict = check_reference(combined(*ref), combined(*check), (ref[0], ref[1]), "pt")
+    record = verdict_record(verdict, reference, "pgi's pt")
+    sides = [read_json(sidecar_path(c)) for c in checks]
+    record["check"] = {
+        "spp_per_half": [s.get("spp") for s in sides],
+        "render_seconds": sum(float(s.get("render_seconds") or 0.0) for s in sides),
+    }
+    return record
+
+
 def merge_reference(
     half_a: str | Path,
     half_b: str | Path,
     out_exr: str | Path,
     out_json: str | Path,
     plan_json: str | Path | None = None,
+    checks: Sequence[str | Path] | None = None,
 ) -> dict[str, Any]:
     """Average two independent reference halves and record the reference's own error, how it
-    was sized (``plan_json``, the reference-plan step's) and what REFERENCE_CHECKS find.
+    was sized (``plan_json``, the reference-plan step's), what rendered it and whether it can
+    be trusted: a Mitsuba reference is checked against pgi's pt (``checks``, the check's two
+    halves); one pgi's pt rendered carries the plan's verdict on Mitsuba's pilot, which sent
+    it there (it is not checked against the check: its first passes are the check's).
 
     See :func:`compare.metrics.reference_error` for why the reference error is a quarter of
     the half-vs-half error.
@@ -101,9 +132,21 @@ def merge_reference(
         "width": int(ref.shape[1]),
         "height": int(ref.shape[0]),
     }
-    if plan_json is not None:
-        info["plan"] = read_json(plan_json)
-    info["warnings"] = [w for check in REFERENCE_CHECKS for w in check(a, b, info)]
+    plan = read_json(plan_json) if plan_json is not None else {}
+    if plan:
+        info["plan"] = plan
+    sources = {str(s.get("source") or "mitsuba") for s in sides}
+    source = sources.pop() if len(sources) == 1 else "mixed"
+    info["source"] = source
+    info["source_label"] = source_label(source)
+    trust = plan.get("trust")
+    if source == "mitsuba" and checks:
+        scene = sides[0].get("scene") or Path(out_json).parent.name
+        trust = check_reference_files([half_a, half_b], checks, f"Mitsuba's reference of {scene}")
+    info["trust"] = trust
+    # Verdicts are drawn against this reference unless it is Mitsuba's and failed its check.
+    info["trusted"] = source != "mitsuba" or not trust or bool(trust["trustworthy"])
+    info["warnings"] = [trust["line"]] if trust and not trust["trustworthy"] else []
     write_exr(out_exr, ref, {"reference": info})
     write_json(out_json, info)
     return info
@@ -167,6 +210,9 @@ def compare_run(
         row.update(m)
         row["ref_relmse"] = ref_rel
         row["ref_mse"] = ref_mse
+        # what rendered the reference, and whether verdicts may be drawn against it
+        row["reference"] = str(ref_info.get("source_label") or "Mitsuba")
+        row["reference_trusted"] = bool(ref_info.get("trusted", True))
         row.update(corrected)
         row["image"] = str(path)
         rows.append(row)

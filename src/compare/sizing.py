@@ -21,7 +21,9 @@ from __future__ import annotations
 
 import itertools
 import math
+import shlex
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -128,20 +130,34 @@ def fixed_plan(spp: int, source: str = "mitsuba") -> dict[str, Any]:
 
 
 def plan_from_files(spec: dict[str, Any]) -> dict[str, Any]:
-    """The reference-plan step: ``spec`` gives ``out`` (the plan's JSON), ``source`` and either
-    ``spp`` (fixed by the config) or ``pilot`` (the two pilot halves' images, with their
-    sidecars and variances beside them), ``runs`` ({method: images at the largest budget}),
-    ``target`` and ``max_seconds``. Writes the plan and returns it."""
+    """The reference-plan step: ``spec`` gives ``out`` (the plan's JSON), ``scene``, ``source``
+    (the config's: mitsuba or pgi), ``check`` (the two halves of pgi's pt check) and either
+    ``spp`` (fixed by the config) or, sized, ``pilot`` (Mitsuba's two pilot halves, where
+    Mitsuba is to render; with their sidecars and variances beside them), ``runs`` ({method:
+    images at the largest budget}), ``target`` and ``max_seconds``.
+
+    A sized Mitsuba reference's pilot is checked against the check (compare.trust); where it
+    is not trustworthy the plan names pgi's pt as the source instead (``fallback``), and the
+    check's halves serve as the pilot that sizes it (the halves extend their stores). The
+    verdict is kept under ``trust``. Writes the plan and returns it."""
     from renderer.imageio import read_exr, read_json, write_json
 
-    from .runs import read_halves, sidecar_path
+    from .runs import check_reference_files, read_halves, sidecar_path
 
     source = str(spec.get("source", "mitsuba"))
+    trust, pilot = None, spec.get("pilot")
+    if source == "mitsuba" and pilot and spec.get("check"):
+        name = f"Mitsuba's reference of {spec.get('scene', 'this scene')}"
+        trust = check_reference_files(pilot, spec["check"], name)
+        if not trust["trustworthy"]:
+            source = "pgi"
+    if source == "pgi":
+        pilot = spec.get("check")
     if spec.get("spp"):
         plan = fixed_plan(int(spec["spp"]), source)
     else:
-        (a, b), variances = read_halves(spec["pilot"])
-        sides = [read_json(sidecar_path(h)) for h in spec["pilot"]]
+        (a, b), variances = read_halves(pilot)
+        sides = [read_json(sidecar_path(h)) for h in pilot]
         images = {
             method: [read_exr(p).astype(np.float64) for p in paths]
             for method, paths in spec["runs"].items()
@@ -157,5 +173,19 @@ def plan_from_files(spec: dict[str, Any]) -> dict[str, Any]:
             max_seconds=float(spec["max_seconds"]),
             source=source,
         )
+    plan["trust"] = trust
+    plan["fallback"] = source != spec.get("source", "mitsuba")
     write_json(spec["out"], plan)
+    if trust is not None:
+        fallback = "; the reference is rendered by pgi's pt" if plan["fallback"] else ""
+        print(trust["line"] + fallback)
     return plan
+
+
+def half_args(plan: dict[str, Any], folder: str | Path, half: int) -> str:
+    """The `pgi reference` options of one half of a planned reference: samples, source, and
+    the store it extends (``<folder>/store/<source>-half<h>.npz``: a Mitsuba half extends
+    its pilot, a pgi one the check). The workflow checks references itself: no check here."""
+    source = str(plan.get("source", "mitsuba"))
+    store = Path(folder) / "store" / f"{source}-half{half}.npz"
+    return f"--spp {int(plan['spp'])} --source {source} --check 0 --store {shlex.quote(str(store))}"

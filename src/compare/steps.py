@@ -22,21 +22,24 @@ def _reference_plan(a: argparse.Namespace) -> None:
 
 
 def _reference_args(a: argparse.Namespace) -> None:
-    """The `pgi reference` options a plan gives: what the reference-half job runs."""
+    """The `pgi reference` options a plan gives one half: what the reference-half job runs."""
     from renderer.imageio import read_json
 
-    plan = read_json(a.plan)
-    print(f"--spp {int(plan['spp'])} --source {plan.get('source', 'mitsuba')}")
+    from .sizing import half_args
+
+    print(half_args(read_json(a.plan), Path(a.plan).parent, int(a.half)))
 
 
 def _merge_reference(a: argparse.Namespace) -> None:
     from .runs import merge_reference
 
-    info = merge_reference(a.half_a, a.half_b, a.out_exr, a.out_json, a.plan)
+    info = merge_reference(a.half_a, a.half_b, a.out_exr, a.out_json, a.plan, a.check)
     print(
         f"reference: half-vs-half relMSE {info['halves_relmse']:.4g}, "
         f"estimated reference relMSE {info['ref_relmse']:.4g}"
     )
+    if info.get("trust"):
+        print(info["trust"]["line"])
 
 
 def _compare_run(a: argparse.Namespace) -> None:
@@ -105,6 +108,7 @@ def main(argv: list[str] | None = None) -> int:
 
     p = sub.add_parser("reference-args", help="print the `pgi reference` options of a plan")
     p.add_argument("plan")
+    p.add_argument("half", help="0 or 1")
     p.set_defaults(fn=_reference_args)
 
     p = sub.add_parser("merge-reference", help="average two reference halves, record error")
@@ -113,6 +117,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("out_exr")
     p.add_argument("out_json")
     p.add_argument("--plan", help="the reference's plan (reference-plan), recorded with it")
+    p.add_argument(
+        "--check", nargs=2, help="the two halves of pgi's pt check (a Mitsuba reference is checked)"
+    )
     p.set_defaults(fn=_merge_reference)
 
     p = sub.add_parser("compare-run", help="metrics of every snapshot of one run")

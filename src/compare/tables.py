@@ -3,7 +3,9 @@
 Tables (all written by :func:`write_tables` into one folder):
 
 - ``runs.csv``           one row per scene x method x seed x budget: metrics as measured,
-                         sidecar stats, the reference's own error, and for the MSE-type
+                         sidecar stats, the reference's own error, what rendered it
+                         (``reference``: Mitsuba, or pgi's pt where Mitsuba's failed its
+                         check) and whether it passed (``reference_trusted``); for the MSE-type
                          metrics the error with the reference's own removed
                          (``<metric>_corrected``) and its uncertainties (``<metric>_u``, of
                          which ``<metric>_u_shared`` is shared by every image of the scene)
@@ -11,8 +13,9 @@ Tables (all written by :func:`write_tables` into one folder):
                          and corrected; the reference's uncertainty of each corrected mean
                          (``<metric>_u``) and whether that mean is determined (``determined``)
 - ``best.csv``           the best method per scene and budget by corrected error, the methods
-                         tied with it, and those of them tied only by the reference's
-                         uncertainty (``reference_ties``)
+                         tied with it, those of them tied only by the reference's
+                         uncertainty (``reference_ties``), and the reference's source; none
+                         for a scene whose reference failed its check (compare.trust)
 - ``overview.{md,html}`` primary metric, scene x method rows, one column per budget,
                          mean +- std over seeds (corrected, the measured value beside it),
                          best method per scene and budget marked, cells whose corrected
@@ -158,6 +161,9 @@ def summarize(runs: pd.DataFrame, determined_fraction: float = DETERMINED_FRACTI
     agg.columns = [f"{a}_{b}" for a, b in agg.columns]
     agg["n_seeds"] = g["seed"].nunique()
     agg["ref_relmse"] = g["ref_relmse"].first()
+    for column in ("reference", "reference_trusted"):  # what rendered the reference, and
+        if column in runs:  # whether verdicts may be drawn against it (compare.trust)
+            agg[column] = g[column].first()
     for m in (c[: -len("_corrected")] for c in corrected):
         total, shared = runs[f"{m}_u"], runs[f"{m}_u_shared"]
         own = np.sqrt(np.maximum(total**2 - shared**2, 0.0)).groupby([runs[k] for k in KEYS])
@@ -290,6 +296,8 @@ def best_methods(summary: pd.DataFrame, metric: str) -> pd.DataFrame:
     having had less time; a budget whose cells all overran has no winner."""
     col, std, u, shared = error_columns(summary, metric)
     valid = ranked_cells(summary, metric)
+    if "reference_trusted" in valid:  # no verdict against a reference that failed its check
+        valid = valid[valid.reference_trusted.astype(bool)]
     if "render_seconds_mean" in valid:
         in_time = [
             not over_budget(t, b)
@@ -297,7 +305,7 @@ def best_methods(summary: pd.DataFrame, metric: str) -> pd.DataFrame:
         ]
         valid = valid[in_time]
     idx = valid.groupby(["scene", "budget"])[col].idxmin()
-    cols = ["scene", "budget", "method", col, "render_seconds_mean"]
+    cols = ["scene", "budget", "method", col, "render_seconds_mean", "reference"]
     best = valid.loc[idx, [c for c in cols if c in valid]].reset_index(drop=True)
 
     def uncertainty(row: pd.Series) -> tuple[float, float]:
@@ -564,8 +572,20 @@ def overview_cells(summary: pd.DataFrame, metric: str) -> list[dict]:
                 "seconds": r.render_seconds_mean,
                 "off_budget": off_budget(r.render_seconds_mean, r.budget),
             }
-        out.append({"scene": scene, "method": method, "cells": cells})
+        out.append({"scene": scene, "method": method, "cells": cells, "note": reference_note(d)})
     return out
+
+
+def reference_note(cells: pd.DataFrame) -> str:
+    """What a scene's rows say of its reference: nothing for a Mitsuba reference that passed
+    its check; "reference: pgi's pt" for one rendered by pgi; "no trustworthy reference" for
+    a Mitsuba reference that failed it (ranked against nothing)."""
+    if "reference_trusted" in cells and not cells.reference_trusted.astype(bool).all():
+        return "no trustworthy reference"
+    if "reference" in cells:
+        source = str(cells.reference.iloc[0])
+        return "" if source == "Mitsuba" else f"reference: {source}"
+    return ""
 
 
 def flag_meaning(fraction: float = DETERMINED_FRACTION) -> str:
@@ -620,7 +640,8 @@ def overview_markdown(
             t = t if c["determined"] else t + " ⚠"
             t = f"{t} ({c['detail']})" if c["detail"] else t
             cells.append(t + f" (at {fmt(c['seconds'])} s)" if c["off_budget"] else t)
-        lines.append("| " + " | ".join([row["scene"], row["method"], *cells]) + " |")
+        scene = f"{row['scene']} ({row['note']})" if row["note"] else row["scene"]
+        lines.append("| " + " | ".join([scene, row["method"], *cells]) + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -650,6 +671,8 @@ def overview_html(
             seen.add(r["scene"])
             name = e(r["scene"])
             label = f'<a href="scene-{name}.html">{name}</a>' if link_scenes else name
+            if r["note"]:
+                label += f'<br><small class="note">{e(r["note"])}</small>'
             parts.append(f'<th class="scene" rowspan="{counts[r["scene"]]}">{label}</th>')
         parts.append(f'<th class="method">{e(r["method"])}</th>')
         for b in budgets:

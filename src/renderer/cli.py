@@ -13,6 +13,7 @@ import sys
 import threading
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from . import __version__
 from .errors import PgiError, caused_by_interrupt, printable, shorten_repr
@@ -43,6 +44,16 @@ def _positive(kind: type):
         return value
 
     return parse
+
+
+def _non_negative_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not 0 <= value < math.inf:
+        raise argparse.ArgumentTypeError(f"expected a finite value >= 0, got {text!r}")
+    return value
 
 
 def _seed(text: str) -> int:
@@ -147,7 +158,7 @@ def variance_path(image: str | Path) -> Path:
 
 
 def cmd_reference(args: argparse.Namespace) -> int:
-    from .fingerprint import reference_fingerprint
+    from .fingerprint import reference_fingerprint, render_fingerprint
     from .imageio import check_output_path, write_exr, write_image_and_sidecar
     from .methods import check_overrides
     from .progressive import Progress, check_threads
@@ -160,14 +171,16 @@ def cmd_reference(args: argparse.Namespace) -> int:
     overrides, _ = split_sets(args.set, "reference")
     _refuse_overwriting_the_scene(args.scene, [out, variance_path(out)], overrides)
     check_threads(args.threads)
-    check_overrides("mitsuba", overrides)  # the reference is Mitsuba's (volpath or volpathmis)
+    if args.source == "mitsuba":  # Mitsuba reads neither our estimators nor our roulette
+        check_overrides("mitsuba", overrides)
     scene = load_scene(args.scene, overrides)
     key = None
     if args.store:  # passes are taken from it only if they rendered the same image
         key = {
             "scene": scene_content_digest(scene.path, overrides),
             "overrides": list(overrides),
-            "code": reference_fingerprint(),
+            # pgi's passes depend on the whole renderer, Mitsuba's on what exports to it
+            "code": render_fingerprint() if args.source == "pgi" else reference_fingerprint(),
         }
     bar = Progress(None, args.spp, enabled=not args.quiet)
     acc, info = render_reference_passes(
@@ -195,6 +208,10 @@ def cmd_reference(args: argparse.Namespace) -> int:
         overrides=overrides,
         variance=variance_path(out).name if variance is not None else None,
     )
+    trust = None
+    if args.source == "mitsuba" and args.check > 0:
+        trust = _check_reference(scene, acc, args)
+        info["trust"] = trust
     if variance is not None:
         write_exr(variance_path(out), variance, {"variance_of": out.name})
     else:  # a variance file of an earlier render must not pass for this one's
@@ -202,7 +219,27 @@ def cmd_reference(args: argparse.Namespace) -> int:
     write_image_and_sidecar(out, acc.mean, info)
     resumed = f" ({info['spp_resumed']} of them from {args.store})" if info["spp_resumed"] else ""
     print(f"{out}: {info['renderer']} reference, {acc.spp} spp in {acc.passes} passes{resumed}")
+    if trust is not None:
+        print(trust["line"])
     return 0
+
+
+def _check_reference(scene: Any, acc: Any, args: argparse.Namespace) -> dict[str, Any]:
+    """Check a Mitsuba reference against ``args.check`` seconds of pgi's pt (seeds of its own):
+    compare.trust's verdict, as the sidecar keeps it (``trust``)."""
+    from compare.trust import Estimate, check_reference, verdict_record
+
+    from .reference import render_check
+
+    check, check_info = render_check(scene, args.check, seed=args.seed, threads=args.threads)
+    verdict = check_reference(
+        Estimate.from_passes(acc.mean, acc.variance_of_mean(), acc.passes),
+        Estimate.from_passes(check.mean, check.variance_of_mean(), check.passes),
+        check_name="pt",
+    )
+    record = verdict_record(verdict, f"Mitsuba's reference of {scene.name}", "pgi's pt")
+    record["check"] = {k: check_info[k] for k in ("renderer", "spp", "passes", "render_seconds")}
+    return record
 
 
 def _recorded_reference_error(reference: Path, shape: tuple[int, ...]) -> dict[str, float]:
@@ -296,7 +333,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 PLANNED_PREFIX = "# not yet implemented:"
 # `pgi reference --source`: renderer.reference.SOURCES, named here without importing Mitsuba.
-SOURCE_NAMES = ("mitsuba",)
+SOURCE_NAMES = ("mitsuba", "pgi")
 
 
 def cmd_methods(args: argparse.Namespace) -> int:
@@ -405,7 +442,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     r.set_defaults(func=cmd_render)
 
-    ref = sub.add_parser("reference", help="render the Mitsuba 3 reference of a scene")
+    ref = sub.add_parser(
+        "reference", help="render the reference of a scene (Mitsuba 3, checked by pgi's pt)"
+    )
     scene_arg(ref)
     ref.add_argument(
         "--spp",
@@ -425,7 +464,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--source",
         default="mitsuba",
         choices=sorted(SOURCE_NAMES),
-        help="what renders the passes (default mitsuba: volpath, volpathmis for chromatic media)",
+        help="what renders the passes: mitsuba (default; volpath, volpathmis for chromatic "
+        "media) or pgi (pgi's pt, for scenes where Mitsuba's reference is not trustworthy)",
     )
     ref.add_argument(
         "--store",
@@ -433,6 +473,16 @@ def build_parser() -> argparse.ArgumentParser:
         help="keep the passes in FILE (.npz) and extend them: passes it already holds for "
         "the same scene, overrides, seed and code are used, and only the samples still "
         "missing are rendered (a store holding more gives them all)",
+    )
+    ref.add_argument(
+        "--check",
+        type=_non_negative_float,
+        default=10.0,
+        metavar="SECONDS",
+        help="check a Mitsuba reference against SECONDS of pgi's pt (seeds of its own; "
+        "default 10, about what dense, white media need; 0: no check): one line says whether "
+        "it is trustworthy (dead pixels where pt sees light, an image mean outside pt's "
+        "confidence interval) and the sidecar keeps the verdict under `trust`",
     )
     ref.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     ref.set_defaults(func=cmd_reference)

@@ -10,10 +10,10 @@ rendered is thrown away. Passes hold at most 256 spp, which bounds memory in the
 (one lane per sample), and are averaged in float64. Nothing is replaced silently: a
 non-finite pixel value is an error.
 
-Where the passes come from is a *source* (:data:`SOURCES`): Mitsuba today. Another renderer
-(say, one of pgi's own unbiased methods, for scenes Mitsuba cannot render right) is one more
-class with the same three members; the accumulation, the store and the workflow around them
-do not change.
+Where the passes come from is a *source* (:data:`SOURCES`): Mitsuba, or pgi's own path
+tracer (``pgi``: for scenes where Mitsuba's image cannot be trusted, and for the short check
+that finds them, :func:`render_check`). Both give passes of their own seeds, so the
+accumulation, the store and the reference's own error work alike for either.
 """
 
 from __future__ import annotations
@@ -40,6 +40,8 @@ MAX_SAMPLES_PER_PASS = 1 << 24  # 256 spp at 256x256
 # Passes a workflow reference is split into at least: the spread between passes estimates
 # the variance of their mean, 7 degrees of freedom per value with 8.
 MIN_PASSES_FOR_VARIANCE = 8
+# Passes a check (render_check) aims at.
+CHECK_PASSES = 32
 
 
 def derive_seed(tag: str, seed: int, index: int) -> int:
@@ -122,7 +124,49 @@ class MitsubaSource:
         return int(dr.thread_count())
 
 
-SOURCES: dict[str, Callable[[Scene, int | None], ReferenceSource]] = {"mitsuba": MitsubaSource}
+class PgiSource:
+    """pgi's unbiased path tracer (``pt``): a pass is a pt render of ``spp`` samples per pixel
+    with a seed of its own. Its pixels are independent (a camera path adds to its own pixel
+    only), as a reference's variance estimate assumes."""
+
+    method = "pt"
+
+    def __init__(self, scene: Scene, threads: int | None = None) -> None:
+        # imported here: Mitsuba references do not depend on the renderer's own methods
+        # (`pgi fingerprint`'s reference digest lists the modules `pgi reference` loads)
+        from renderer import __version__
+        from renderer.methods import get_method
+        from renderer.progressive import available_cores
+
+        self.scene = scene
+        self.version = __version__
+        self.method_class = get_method(self.method)
+        self.thread_count = threads or available_cores()
+
+    def identity(self) -> dict[str, Any]:
+        return {"renderer": f"pgi {self.version} {self.method}", "variant": "cpu"}
+
+    def render_pass(self, spp: int, seed: int) -> np.ndarray:
+        method = self.method_class(
+            self.scene, seed=seed, threads=self.thread_count, params={}, spp_budget=spp
+        )
+        while method.stats()["spp"] < spp:
+            method.run_iteration(method.iterations)
+        stats = method.stats()
+        if stats["nonfinite"]:  # dropped samples would bias the reference
+            raise PgiError(f"{self.scene.path}: pt dropped {stats['nonfinite']} non-finite samples")
+        return np.asarray(method.image(), dtype=np.float64)
+
+    def threads(self) -> int:
+        return self.thread_count
+
+
+SOURCES: dict[str, Callable[[Scene, int | None], ReferenceSource]] = {
+    "mitsuba": MitsubaSource,
+    "pgi": PgiSource,
+}
+# How each source is named to a user ("Mitsuba's reference", "pgi's pt reference").
+SOURCE_LABELS = {"mitsuba": "Mitsuba", "pgi": "pgi's pt"}
 
 
 # --- accumulation ---------------------------------------------------------------------------
@@ -282,6 +326,37 @@ def render_reference_passes(
         "seconds_per_spp": acc.seconds_per_spp(),
         "threads": renderer.threads() if renderer else threads,
         "nonfinite": 0,
+    }
+    return acc, info
+
+
+def render_check(
+    scene: Scene, seconds: float, seed: int = 0, threads: int | None = None
+) -> tuple[Accumulation, dict[str, Any]]:
+    """A short render by the ``pgi`` source to check a reference against: passes for about
+    ``seconds`` of render time and at least MIN_PASSES_FOR_VARIANCE of them (their spread
+    gives the check's variance), seeded apart from any reference's passes. Passes start at
+    1 spp and double while one takes under 1/CHECK_PASSES of ``seconds``: about that many
+    passes give the check's variance its degrees of freedom (a t-score from a few is worth
+    far less), and passes not much smaller keep the threads busy (a pass lasts as long as
+    its longest path: long in dense media)."""
+    source = PgiSource(scene, threads)
+    acc = Accumulation.empty(scene.film.height, scene.film.width, {"source": "pgi"})
+    spp, start = 1, time.perf_counter()
+    while acc.passes < MIN_PASSES_FOR_VARIANCE or time.perf_counter() - start < seconds:
+        t = time.perf_counter()
+        image = source.render_pass(spp, derive_seed("check", seed, acc.passes))
+        took = time.perf_counter() - t
+        acc.add(image, spp, took, first=acc.passes == 0)
+        if took < seconds / CHECK_PASSES and spp < MAX_SPP_PER_PASS:
+            spp *= 2
+    info = {
+        **source.identity(),
+        "source": "pgi",
+        "spp": acc.spp,
+        "passes": acc.passes,
+        "render_seconds": acc.render_seconds(),
+        "seed": seed,
     }
     return acc, info
 

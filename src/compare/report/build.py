@@ -231,6 +231,37 @@ def _sizing_sentence(ref: dict[str, Any]) -> str:
     return text + "."
 
 
+def _trust_sentence(ref: dict[str, Any]) -> str:
+    """Whether the reference can be trusted (its check against pgi's pt, compare.trust) and,
+    where Mitsuba's could not, what rendered it instead; in HTML."""
+    trust, source = ref.get("trust") or {}, ref.get("source", "mitsuba")
+    findings = "; ".join(str(f) for f in trust.get("findings") or ())
+    if source == "pgi" and trust and not trust.get("trustworthy", True):
+        return (
+            f'<p><span class="flag">⚠ No trustworthy Mitsuba reference: {e(findings)}; '
+            "reference rendered by pgi's pt</span> (in two independent halves of their own "
+            "seeds, its own error estimated and removed as Mitsuba's would be; a Mitsuba pilot "
+            "failed the check, so the reference is unbiased by pt's construction, not "
+            "confirmed by a second renderer).</p>"
+        )
+    if source == "pgi":
+        return "<p>Reference rendered by pgi's pt, as the config asks (reference_source).</p>"
+    if trust and not trust.get("trustworthy", True):
+        return (
+            f'<p><span class="flag">⚠ No trustworthy Mitsuba reference: {e(findings)}.</span> '
+            "Methods are not ranked against it (set the scene's <code>reference_source: "
+            "pgi</code> to have pgi's pt render it).</p>"
+        )
+    if trust:
+        spp = (trust.get("check") or {}).get("spp_per_half") or []
+        of = f" (two halves of {e(str(spp[0]))} spp)" if spp and spp[0] else ""
+        return (
+            f"<p>Checked against pgi's pt{of}: no dead pixels where pt sees light, its image "
+            "mean within pt's confidence interval, its halves agreeing within their noise.</p>"
+        )
+    return ""
+
+
 def _reference_paragraph(ref: dict[str, Any]) -> str:
     spp = ref.get("spp_per_half") or []
     passes = ref.get("passes_per_half") or []
@@ -240,10 +271,7 @@ def _reference_paragraph(ref: dict[str, Any]) -> str:
         if ref.get("variances")
         else "the variances of the halves estimated from their difference alone"
     )
-    warnings = "".join(
-        f' <span class="flag">⚠ {e(str(w))}</span>' for w in ref.get("warnings") or ()
-    )
-    return (
+    return _trust_sentence(ref) + (
         f"<p>{e(renderer[:1].upper() + renderer[1:])}, two independent halves"
         + (f" of {e(str(spp[0]))} spp each" if spp and spp[0] else "")
         + (f" ({e(str(passes[0]))} passes)" if passes and passes[0] else "")
@@ -252,8 +280,19 @@ def _reference_paragraph(ref: dict[str, Any]) -> str:
         f"<b>{T.fmt(ref.get('ref_relmse'))}</b> (a quarter of the half-vs-half value: each half "
         "has error s², their difference 2s², the average s²/2). MSE-type errors are shown "
         f"with it removed; their uncertainties use {variances}. "
-        f"{_sizing_sentence(ref)}{warnings}</p>"
+        f"{_sizing_sentence(ref)}</p>"
     )
+
+
+def _trust_word(ref: dict[str, Any]) -> str:
+    """The index's word for a reference's check: "yes", "no: Mitsuba's failed, pt's used",
+    "no" (not ranked), or "–" (not checked)."""
+    trust = ref.get("trust") or {}
+    if not trust:
+        return "–"
+    if trust.get("trustworthy"):
+        return "yes"
+    return "Mitsuba's: no (pt's used)" if ref.get("source") == "pgi" else "no (not ranked)"
 
 
 def _reference_row(scene: str, ref: dict[str, Any], cells: pd.DataFrame) -> dict[str, Any]:
@@ -263,6 +302,8 @@ def _reference_row(scene: str, ref: dict[str, Any], cells: pd.DataFrame) -> dict
     row = {
         "scene": scene,
         "spp per half": (ref.get("spp_per_half") or [None])[0],
+        "source": ref.get("source_label") or "Mitsuba",
+        "trustworthy": _trust_word(ref),
         "sized": "to the study" if sized else ("fixed" if plan else "–"),
         "target relMSE": plan.get("target_error") if sized else math.nan,
         "spp needed": plan.get("spp_needed") if sized else math.nan,
@@ -355,7 +396,10 @@ def _about_scene(
                     f" <b>Won</b> at {e(T.budget_label(last.budget))}: {e(won)} ({verdict})."
                 )
         ranked = T.ranked_cells(summary[summary.scene == scene], metric)
-        if best.empty and not ranked.empty:
+        trusted = summary[summary.scene == scene].get("reference_trusted", pd.Series([True]))
+        if not trusted.astype(bool).all():
+            parts.append(" No trustworthy reference: no method is ranked.")
+        elif best.empty and not ranked.empty:
             parts.append(" No method stayed within any budget: none won.")
         elif not best.empty and last.budget < ranked.budget.max():
             largest = T.budget_label(ranked.budget.max())
@@ -638,6 +682,9 @@ def build_index(spec: dict[str, Any]) -> None:
         win.append(f'<tr><th class="scene"><a href="scene-{e(s)}.html">{e(s)}</a></th>')
         for b in budgets:
             r = best[(best.scene == s) & (best.budget == b)]
+            if r.empty and not refs.get(s, {}).get("trusted", True):
+                win.append('<td class="note">no trustworthy reference</td>')
+                continue
             if r.empty:
                 ran = ((ranked.scene == s) & (ranked.budget == b)).any()
                 # every cell with a value overran the budget: none is an equal-time result
