@@ -600,10 +600,14 @@ def test_validate_version_reference_and_every_method_succeed(tmp_path):
     assert v.returncode == 0 and "cbox-fog" in v.stdout and "ok (" in v.stdout, v.stderr
     assert pgi("--version").stdout.startswith("pgi ")
     ref = tmp_path / "ref.exr"
-    r = pgi("reference", "cbox", "--spp", "4", *small(), "-o", str(ref))
+    r = pgi("reference", "cbox", "--spp", "16", "--check", "1", *small(), "-o", str(ref))
     assert r.returncode == 0, r.stderr
     info = json.loads(ref.with_suffix(".json").read_text())
-    assert read_exr(ref).mean() > 0 and info["spp"] == 4
+    assert read_exr(ref).mean() > 0 and info["spp"] == 16
+    # checked against a second of pgi's pt: a sound reference passes, in one line
+    assert "Mitsuba's reference of cbox passed its checks" in r.stdout.splitlines()
+    trust = info["trust"]
+    assert trust["trustworthy"] and trust["findings"] == [] and trust["check"]["spp"] > 0
     assert info["threads"] == available_cores()  # without --threads: the cores it may use
     for method in method_ids():
         out = tmp_path / f"{method}.exr"
@@ -1254,6 +1258,7 @@ def test_reference_store_is_extended_not_rendered_again(tmp_path):
     def reference(spp: int, name: str, *extra: str) -> dict:
         out = tmp_path / f"{name}.exr"
         args = ["reference", "cbox", "--spp", str(spp), "--threads", "1", "--store", store]
+        args += ["--check", "0"]
         r = pgi(*args, *small(*extra), "-q", "-o", str(out))
         assert r.returncode == 0, r.stderr
         return json.loads(out.with_suffix(".json").read_text())

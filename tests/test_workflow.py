@@ -7,6 +7,7 @@ with the real `pgi` when its reference renderer is available.
 
 from __future__ import annotations
 
+import html
 import importlib.util
 import json
 import os
@@ -526,7 +527,11 @@ def dry_run(tmp_path_factory: pytest.TempPathFactory) -> str:
 
 
 def test_reference_halves_have_their_own_seeds(dry_run: str) -> None:
-    assert sorted(re.findall(r" reference \S+ --spp 16 --seed (\d+)", dry_run)) == ["100", "101"]
+    """Each half, and each half of pt's check, renders with reference.seed + its index."""
+    halves = re.findall(r"reference-args \S+ (\d)\) --seed (\d+)", dry_run)
+    assert sorted(halves) == [("0", "100"), ("1", "101")]
+    checks = re.findall(r" reference \S+ --spp 16 --seed (\d+) --source pgi", dry_run)
+    assert sorted(checks) == ["100", "101"]
 
 
 def test_runs_use_the_configured_seeds(dry_run: str) -> None:
@@ -608,3 +613,99 @@ def test_a_new_method_resizes_the_reference_not_its_pilot(sized_study: Path) -> 
     )
     c = job_counts(snakemake(sized_study, "--configfile", "cap.yaml", "-n", env=env).stdout)
     assert c.get("reference_plan") == 1 and "render" not in c and "reference_pilot" not in c
+
+
+# ------------------------------------------------------------- can the reference be trusted?
+
+
+@pytest.fixture(scope="module")
+def trust_study(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The fake study on four scenes whose references meet each case of the check against pgi's
+    pt: `sound` (Mitsuba's passes), `dense` (Mitsuba's is black: pgi's pt takes over),
+    `dark` (black too, but its samples are fixed: nothing can take over) and `ours` (the
+    config asks for pgi's pt)."""
+    wd = tmp_path_factory.mktemp("trust")
+    for s in ("sound", "dense", "dark", "ours"):
+        (wd / "scenes" / s).mkdir(parents=True)
+        (wd / "scenes" / s / "scene.yaml").write_text(f"# fake scene {s}\n")
+    scenes = [
+        "sound",
+        "dense",
+        {"name": "dark", "reference_spp": 64},
+        {"name": "ours", "reference_source": "pgi"},
+    ]
+    reference = {"spp": "auto", "pilot_spp": 8, "check_spp": 8, "target": 0.5, "max_seconds": 1.0}
+    write_config(
+        wd / "cfg.yaml", wd / "scenes", scenes=scenes, budgets=[0.5, 1], reference=reference
+    )
+    env = {"FAKE_PGI_METHODS": "pt,lt", "FAKE_PGI_DEAD_SCENES": "dense,dark"}
+    snakemake(wd, "--configfile", "cfg.yaml", env=env)
+    return wd
+
+
+def _reference_record(study: Path, scene: str, name: str) -> dict:
+    return json.loads((study / "results" / "reference" / scene / name).read_text())
+
+
+def test_a_sound_reference_passes_its_check_and_stays_mitsubas(trust_study: Path) -> None:
+    plan = _reference_record(trust_study, "sound", "plan.json")
+    assert plan["source"] == "mitsuba" and not plan["fallback"] and plan["trust"]["trustworthy"]
+    ref = _reference_record(trust_study, "sound", "ref.json")
+    assert ref["source"] == "mitsuba" and ref["trusted"] and ref["trust"]["trustworthy"]
+    assert ref["trust"]["checked_against"] == "pgi's pt" and ref["trust"]["findings"] == []
+    page = (trust_study / "reports" / "scene-sound.html").read_text()
+    assert "Checked against pgi's pt (two halves of 8 spp)" in page
+    assert "No trustworthy" not in page
+
+
+def test_an_untrustworthy_mitsuba_reference_falls_back_to_pt(trust_study: Path) -> None:
+    """Mitsuba's black pilot fails the check: the plan sizes the reference from pt's check
+    (its pilot) and the halves are pt's, extending the check's stores; the report names the
+    finding and the source, and ranks the methods against pt's reference."""
+    plan = _reference_record(trust_study, "dense", "plan.json")
+    assert plan["source"] == "pgi" and plan["fallback"] and plan["how"] == "sized"
+    assert not plan["trust"]["trustworthy"] and plan["pilot_spp"] == 8
+    assert any("exactly 0" in f for f in plan["trust"]["findings"]), plan["trust"]
+    for h in (0, 1):
+        side = _reference_record(trust_study, "dense", f"half{h}.json")
+        assert side["source"] == "pgi" and side["spp"] == plan["spp"]
+    ref = _reference_record(trust_study, "dense", "ref.json")
+    assert ref["source"] == "pgi" and ref["source_label"] == "pgi's pt" and ref["trusted"]
+    page = (trust_study / "reports" / "scene-dense.html").read_text()
+    finding = html.escape(plan["trust"]["findings"][0])
+    assert f"No trustworthy Mitsuba reference: {finding}" in page
+    assert "reference rendered by pgi's pt" in page
+    tables = trust_study / "reports" / "tables"
+    runs = pd.read_csv(tables / "runs.csv")
+    assert set(runs[runs.scene == "dense"].reference) == {"pgi's pt"}
+    assert set(runs[runs.scene == "sound"].reference) == {"Mitsuba"}
+    best = pd.read_csv(tables / "best.csv")
+    assert set(best[best.scene == "dense"].reference) == {"pgi's pt"}
+    assert "dense (reference: pgi's pt)" in (tables / "overview.md").read_text()
+
+
+def test_a_fixed_untrustworthy_reference_ranks_nothing(trust_study: Path) -> None:
+    """A fixed reference has no pilot to send elsewhere: the finished one is checked, and a
+    failure leaves its scene without winners, saying why."""
+    ref = _reference_record(trust_study, "dark", "ref.json")
+    assert ref["source"] == "mitsuba" and not ref["trusted"]
+    assert ref["warnings"] == [ref["trust"]["line"]]
+    assert ref["trust"]["line"].startswith("Mitsuba's reference of dark is not trustworthy: ")
+    best = pd.read_csv(trust_study / "reports" / "tables" / "best.csv")
+    assert "dark" not in set(best.scene) and "sound" in set(best.scene)
+    index = (trust_study / "reports" / "index.html").read_text()
+    assert "no trustworthy reference" in index
+    assert (
+        "No trustworthy Mitsuba reference"
+        in (trust_study / "reports" / "scene-dark.html").read_text()
+    )
+
+
+def test_a_scene_may_ask_for_pts_reference(trust_study: Path) -> None:
+    """`reference_source: pgi`: no Mitsuba pilot; pt's check is the pilot."""
+    folder = trust_study / "results" / "reference" / "ours"
+    assert not (folder / "pilot0.exr").exists()
+    plan = _reference_record(trust_study, "ours", "plan.json")
+    assert plan["source"] == "pgi" and not plan["fallback"] and plan["trust"] is None
+    ref = _reference_record(trust_study, "ours", "ref.json")
+    assert ref["source"] == "pgi" and ref["trusted"] and ref["trust"] is None

@@ -303,7 +303,7 @@ def best_methods(summary: pd.DataFrame, metric: str) -> pd.DataFrame:
             not over_budget(t, b)
             for t, b in zip(valid.render_seconds_mean, valid.budget, strict=True)
         ]
-        valid = valid[in_time]
+        valid = valid[np.array(in_time, dtype=bool)]  # (an empty list would pick columns)
     idx = valid.groupby(["scene", "budget"])[col].idxmin()
     cols = ["scene", "budget", "method", col, "render_seconds_mean", "reference"]
     best = valid.loc[idx, [c for c in cols if c in valid]].reset_index(drop=True)

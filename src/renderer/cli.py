@@ -162,7 +162,7 @@ def cmd_reference(args: argparse.Namespace) -> int:
     from .imageio import check_output_path, write_exr, write_image_and_sidecar
     from .methods import check_overrides
     from .progressive import Progress, check_threads
-    from .reference import MIN_PASSES_FOR_VARIANCE, render_reference_passes
+    from .reference import CHECK_PASSES, MIN_PASSES_FOR_VARIANCE, render_reference_passes
     from .scene import load_scene
     from .scene.sources import scene_content_digest
 
@@ -189,7 +189,9 @@ def cmd_reference(args: argparse.Namespace) -> int:
         seed=args.seed,
         threads=args.threads,
         on_pass=bar.update,
-        min_passes=MIN_PASSES_FOR_VARIANCE,
+        # pt's passes cost little more split finer: more of them give the check's variance
+        # more degrees of freedom (compare.trust maps its t-scores to normal ones by them)
+        min_passes=CHECK_PASSES if args.source == "pgi" else MIN_PASSES_FOR_VARIANCE,
         store=args.store,
         key=key,
         source=args.source,
