@@ -479,10 +479,10 @@ def build_parser() -> argparse.ArgumentParser:
     ref.add_argument(
         "--check",
         type=_non_negative_float,
-        default=10.0,
+        default=20.0,
         metavar="SECONDS",
         help="check a Mitsuba reference against SECONDS of pgi's pt (seeds of its own; "
-        "default 10, about what dense, white media need; 0: no check): one line says whether "
+        "default 20, about what dense, white media need; 0: no check): one line says whether "
         "it is trustworthy (dead pixels where pt sees light, an image mean outside pt's "
         "confidence interval) and the sidecar keeps the verdict under `trust`",
     )
