@@ -1,6 +1,7 @@
 """Russian roulette in dense white media: every method with Mitsuba's rule (survival
 min(max(throughput) eta^2, 0.95)) against pgi's (survival from the throughput, uncapped), at
-equal time, several seeds each, against a reference rendered by pgi's pt.
+equal CPU time (the machine may be shared), several seeds each, against a reference rendered
+by pgi's pt.
 
     python bench/bench_roulette.py [--scenes cloud cbox-fog-dense] [--seconds 5] [--size 32]
                                    [--seeds 3] [--methods pt lt pm sppm ppb bdpt mitsuba]
@@ -28,13 +29,13 @@ import hashlib
 
 import numpy as np
 
-from benchlib import CACHE, REFERENCE_SEEDS, at_least, scene_at, seconds
+from benchlib import CACHE, REFERENCE_SEEDS, at_least, run_for_cpu, scene_at, seconds
 from compare.metrics import reference_error
 from renderer.errors import PgiError
 from renderer.fingerprint import render_fingerprint
 from renderer.imageio import read_exr, write_exr
 from renderer.methods import get_method
-from renderer.progressive import check_threads, run_for
+from renderer.progressive import available_cores, check_threads
 from renderer.scene.sources import scene_content_digest
 
 METHODS = ("pt", "lt", "pm", "sppm", "ppb", "bdpt", "mitsuba")
@@ -76,7 +77,9 @@ def main() -> None:
     parser.add_argument("--scenes", nargs="+", default=list(SCENES), choices=list(SCENES))
     parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
     parser.add_argument("--size", type=at_least(1), default=32, help="film width and height")
-    parser.add_argument("--seconds", type=seconds, default=5.0, help="equal-time budget")
+    parser.add_argument(
+        "--seconds", type=seconds, default=5.0, help="equal-time budget, in CPU seconds"
+    )
     parser.add_argument("--seeds", type=at_least(1), default=3, help="runs per method and rule")
     parser.add_argument(
         "--reference-iterations",
@@ -91,7 +94,7 @@ def main() -> None:
     except PgiError as e:
         parser.error(str(e))
 
-    print(f"equal time {args.seconds:g} s, {args.size}x{args.size}, {args.threads} thread(s)")
+    print(f"equal CPU time {args.seconds:g} s, {args.size}x{args.size}, {args.threads} thread(s)")
     header = (
         f"{'scene':<15} {'method':<8} {'rule':<10} {'mean/ref per seed':<28} "
         f"{'spread':>7} {'nMSE-ref':>11}"
@@ -101,7 +104,7 @@ def main() -> None:
     for name in args.scenes:
         base, overrides = SCENES[name]
         scene = scene_at(base, args.size, overrides)
-        ref, own = pt_reference(name, args.size, args.reference_iterations, args.threads)
+        ref, own = pt_reference(name, args.size, args.reference_iterations, available_cores())
         print(
             f"{name:<15} {'(ref)':<8} {'pt':<10} mean {ref.mean():.4g}, own nMSE {own:.3e}",
             flush=True,
@@ -118,7 +121,7 @@ def main() -> None:
                     method = get_method(method_id)(
                         ruled, seed=seed, threads=args.threads, params={}
                     )
-                    run_for(method, args.seconds)
+                    run_for_cpu(method, args.seconds)
                     image = method.image()
                     ratios.append(image.mean() / ref.mean())
                     errors.append(((image - ref) ** 2).mean() / ref.mean() ** 2 - own)
