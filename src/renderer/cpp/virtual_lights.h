@@ -240,7 +240,8 @@ struct GatherJob {
     GatherPoint at;      // a surface point; for a medium segment, its origin and medium (wo = -d)
     double length = 0;   // medium segment: [0, length) from at.pos along -at.wo (may be infinite)
     RGB weight{0.0};     // the camera path's throughput at the point, or at the segment's origin
-    int64_t path = 0;    // the camera path (its slot in the wave)
+    int64_t path = 0;    // the camera path (its slot in the wave: pixel path % pixels, sample
+                         // path / pixels of the iteration's)
     int32_t track = -1;  // medium segment in a grid: its TransmittanceTrack
     int16_t events = 0;  // camera-side real events of a path through it, the gather vertex's included
     Sampler rng;         // the job's stream: light j takes the child split(j)
@@ -394,16 +395,17 @@ inline bool has_specular_surfaces(const Scene &scene) {
 }
 
 // Every (job, light) pair as a shadow ray, streamed in chunks of a fixed number of pairs (see the
-// top of this file). Pair p joins job p / lights to light p % lights.
+// top of this file). Each job has the same number of pairs, `per_job`: pair p is the
+// (p % per_job)-th of job p / per_job (which light that is, the kernel says).
 class ConnectionStream {
 public:
     explicit ConnectionStream(size_t chunk_pairs) : chunk_(std::max<size_t>(1, chunk_pairs)) {}
 
     // A new set of pairs; the previous one must have been written out to its end.
-    void start(int64_t jobs, int64_t lights) {
+    void start(int64_t jobs, int64_t per_job) {
         jobs_ = jobs;
-        lights_ = lights;
-        total_ = jobs * lights;
+        per_job_ = std::max<int64_t>(1, per_job);
+        total_ = per_job > 0 ? jobs * per_job : 0;
         cursor_ = first_ = 0;
         queue_.clear();
     }
@@ -414,9 +416,9 @@ public:
     uint64_t rays_aimed() const { return rays_aimed_; }
 
     // Writes the next shadow-ray segments into `out`; when a chunk is done, adds its values to
-    // their jobs (add(job, value), in pair order) and opens the next, whose pairs aim(job, light,
-    // ray) fills (setting ray.live and its contribution), in parallel. Returns 0 when every pair
-    // is done.
+    // their jobs (add(job, value), in pair order) and opens the next, whose pairs aim(job, k,
+    // ray, stats) fills (the job's k-th pair; setting ray.live and its contribution), in
+    // parallel. Returns 0 when every pair is done.
     // aim may count density lookups in its MediumStats (summed into `stats`).
     template <typename Aim, typename Add>
     size_t write(const RayBuffers &out, int threads, MediumStats &stats, Aim &&aim, Add &&add) {
@@ -448,7 +450,7 @@ private:
             const int64_t pair = first_ + k;
             ShadowRay &r = queue_[size_t(k)];
             r.live = false;
-            aim(pair / lights_, pair % lights_, r, local);
+            aim(pair / per_job_, pair % per_job_, r, local);
             if (r.live) {
                 r.receiver = k;
                 ++aimed;
@@ -460,13 +462,13 @@ private:
     template <typename Add>
     void flush(Add &add) {
         for (size_t k = 0; k < values_.size(); ++k)
-            if (!is_black(values_[k])) add((first_ + int64_t(k)) / lights_, values_[k]);
+            if (!is_black(values_[k])) add((first_ + int64_t(k)) / per_job_, values_[k]);
         values_.clear();
         queue_.clear();
     }
 
     size_t chunk_;
-    int64_t jobs_ = 0, lights_ = 1, total_ = 0, cursor_ = 0, first_ = 0;
+    int64_t jobs_ = 0, per_job_ = 1, total_ = 0, cursor_ = 0, first_ = 0;
     ShadowQueue queue_;
     std::vector<RGB> values_;
     uint64_t rays_aimed_ = 0;

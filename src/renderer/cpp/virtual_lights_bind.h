@@ -42,6 +42,8 @@ nb::class_<K> &bind_gathering(nb::class_<K> &cls) {
         .def("set_free_flight_fraction", &K::set_free_flight_fraction, "fraction"_a,
              "The probability of drawing a camera segment's point for a light by its free-flight "
              "density rather than equi-angularly about the light.")
+        .def("set_share_lights", &K::set_share_lights, "on"_a,
+             "Each of a pixel's samples gathers its share of the lights (the exact ones: all).")
         .def("set_chunk_pairs", &K::set_chunk_pairs, "pairs"_a,
              "Job x light pairs per chunk of shadow rays (speed and memory only; not the image).")
         .def_prop_ro("continuations", &K::continuations,

@@ -1,6 +1,7 @@
 // vpl: virtual point lights (instant radiosity) in participating media, with clamping; and the
 // gathering kernel it shares with vsl (vsl.h), which spreads each light over a sphere instead.
-//   Keller 1997, "Instant radiosity" (SIGGRAPH);
+//   Keller 1997, "Instant radiosity" (SIGGRAPH); Keller & Heidrich 2001, "Interleaved sampling"
+//     (EGWR): the lights shared out among a pixel's samples;
 //   Kulla & Fajardo 2012, "Importance sampling techniques for path tracing in participating
 //     media" (EGSR): equi-angular sampling along camera rays (equiangular.h);
 //   Kollig & Keller 2004, "Illumination in the presence of weak singularities" and Walter et
@@ -12,12 +13,18 @@
 //      virtual lights y_j with power Phi_j (virtual_lights.h: area lights' own points,
 //      non-delta surface vertices, medium collisions, each with power beta_j / N; point, spot
 //      and directional lights one each, exact);
-//   2. this kernel: spp_per_iteration camera paths per pixel walk from the camera (GatherWalk in
-//      virtual_lights.h: specular chains followed, emission they reach added) and make gather
-//      jobs; every job gathers every light through a shadow ray (ConnectionStream), and the
-//      values go to the job's path, then its pixel.
+//   2. this kernel: S = spp_per_iteration camera paths per pixel walk from the camera
+//      (GatherWalk in virtual_lights.h: specular chains followed, emission they reach added) and
+//      make gather jobs; each job gathers its lights through shadow rays (ConnectionStream), and
+//      the values go to the job's path, then its pixel. Which lights: every one, or (shared
+//      lights, the default) the exact lights and the s-th of every S others for sample s of its
+//      pixel, weighted S: each pixel still gathers every light once per iteration, at the cost
+//      of one sample per light, while its S samples spread over the pixel (interleaved
+//      sampling, Keller & Heidrich 2001, within a pixel). Unbiased: a sample's camera path does
+//      not depend on which share it gathers.
 //
-// The estimator of one iteration, for a camera path of throughput beta:
+// The estimator of one iteration, for a camera path of throughput beta (the sums run over the
+// job's lights, with Phi_j times S for shared ones):
 //   at a surface job x:
 //     L = beta sum_j Phi_j F_x(w_j) F_j(-w_j) V(x, y_j) T(x, y_j) / max(|x - y_j|^2, d_i^2)
 //   along a medium segment x(t) = o + t d, t in [0, l), beta at o: for each light one point t_j
@@ -141,6 +148,16 @@ public:
         free_flight_fraction_ = c;
     }
     bool continuations() const { return walk_.continuations(); }
+    // Each of a pixel's spp_per_iteration samples gathers its share of the light-path vertices'
+    // lights (above); every sample gathers the exact lights.
+    void set_share_lights(bool on) { share_lights_ = on; }
+    bool share_lights() const { return share_lights_; }
+    // Lights each gather job joins: the exact ones, then all the others or its sample's share
+    // (the last shares may be one short).
+    int64_t lights_per_job() const {
+        const int64_t shared = int64_t(lights_.size()) - exact_lights_;
+        return exact_lights_ + (share_lights_ ? (shared + spp_ - 1) / spp_ : shared);
+    }
     // Shadow-ray pairs per chunk of the connection stream (speed and memory only).
     void set_chunk_pairs(size_t pairs) { stream_.set_chunk(pairs); }
 
@@ -154,6 +171,8 @@ public:
             throw std::logic_error("virtual lights: the light paths of iteration " + std::to_string(iteration) +
                                    " come first");
         lights_ = collect_virtual_lights(*scene_, *light_paths_);
+        exact_lights_ = 0;
+        while (exact_lights_ < int64_t(lights_.size()) && lights_[size_t(exact_lights_)].exact()) ++exact_lights_;
         transfer_.begin(iteration);
         stats_.lights += lights_.size();
         jobs_.clear();
@@ -192,14 +211,14 @@ public:
             if (j.has_surface) jobs_.push_back(j.surface);
         }
         stats_.jobs += jobs_.size();
-        stream_.start(int64_t(jobs_.size()), int64_t(lights_.size()));
+        stream_.start(int64_t(jobs_.size()), lights_per_job());
         stats_.pairs += uint64_t(stream_.pairs());
         return size_t(stream_.pairs());
     }
     size_t shadow_rays(const RayBuffers &out) {
         return stream_.write(
             out, threads_, medium_stats_,
-            [&](int64_t job, int64_t light, ShadowRay &r, MediumStats &ms) { aim(job, light, r, ms); },
+            [&](int64_t job, int64_t k, ShadowRay &r, MediumStats &ms) { aim(job, k, r, ms); },
             [&](int64_t job, const RGB &value) { paths_[size_t(jobs_[size_t(job)].path)].radiance += value; });
     }
     void resolve_shadows(const Hits &hits) { stream_.resolve(*scene_, hits, threads_, medium_stats_); }
@@ -217,9 +236,9 @@ public:
     const VirtualLightStats &stats() const { return stats_; }
     uint64_t shadow_rays_aimed() const { return stream_.rays_aimed(); }
 
-    // The value one light brings one job, before visibility and the shadow ray's transmittance,
-    // and how its shadow ray goes (ray.live: whether there is one).
-    void aim(int64_t job, int64_t light, ShadowRay &r, MediumStats &ms) const;
+    // The value the k-th light of a job brings it, before visibility and the shadow ray's
+    // transmittance, and how its shadow ray goes (ray.live: whether there is one).
+    void aim(int64_t job, int64_t k, ShadowRay &r, MediumStats &ms) const;
 
 private:
     // Whether the light's centre lies on the lit side of both ends (surfaces are one-sided).
@@ -240,6 +259,8 @@ private:
     GatherWalk walk_;
     Transfer transfer_;
     double free_flight_fraction_ = 0;
+    bool share_lights_ = true;
+    int64_t exact_lights_ = 0;  // the first lights_ are the exact ones
     double min_distance2_ = 0;
     std::vector<VirtualLight> lights_;
     std::vector<GatherCameraPath> paths_;
@@ -254,12 +275,19 @@ private:
 };
 
 template <typename Transfer>
-void VirtualLightGathering<Transfer>::aim(int64_t job, int64_t light, ShadowRay &r, MediumStats &ms) const {
+void VirtualLightGathering<Transfer>::aim(int64_t job, int64_t k, ShadowRay &r, MediumStats &ms) const {
     const Scene &scene = *scene_;
     const GatherJob &J = jobs_[size_t(job)];
-    const VirtualLight &Y = lights_[size_t(light)];
     r.live = false;
+    // Shared lights: sample s of a pixel gathers the exact lights, then the others' s-th,
+    // (s + S)-th, (s + 2 S)-th, ..., each S times over.
+    const int64_t pixels = int64_t(film_.width) * film_.height;
+    const bool shared = share_lights_ && k >= exact_lights_;
+    const int64_t light = shared ? exact_lights_ + J.path / pixels + (k - exact_lights_) * spp_ : k;
+    if (light >= int64_t(lights_.size())) return;
+    const VirtualLight &Y = lights_[size_t(light)];
     if (!depth_.allows(Y.depth + J.events)) return;
+    const double share = shared ? double(spp_) : 1.0;
     Sampler rng = J.rng.split(uint64_t(light));
     GatherPoint at = J.at;
     Vec3 w;
@@ -268,7 +296,7 @@ void VirtualLightGathering<Transfer>::aim(int64_t job, int64_t light, ShadowRay 
     if (!J.segment()) {
         if (directional) {
             w = -Y.axis;
-            value = J.weight * Y.power * gather_scattering(scene, at, w);
+            value = J.weight * Y.power * share * gather_scattering(scene, at, w);
         } else {
             const Vec3 d = Y.pos - at.pos;
             const double d2 = dot(d, d);
@@ -278,7 +306,7 @@ void VirtualLightGathering<Transfer>::aim(int64_t job, int64_t light, ShadowRay 
             const RGB transfer = Y.exact()
                                      ? gather_scattering(scene, at, w) * virtual_light_emission(scene, Y, -w) / d2
                                      : transfer_(scene, at, Y, w, d2, /*times_d2=*/false, rng);
-            value = J.weight * Y.power * transfer;
+            value = J.weight * Y.power * share * transfer;
         }
     } else {
         // A point of the segment for this light: equi-angular about it, or by the free-flight
@@ -334,7 +362,7 @@ void VirtualLightGathering<Transfer>::aim(int64_t job, int64_t light, ShadowRay 
         }
         if (is_black(per_unit)) return;
         const RGB camera = homogeneous ? beer_lambert(m.sigma_t, t) : tracks_[size_t(J.track)].at(t);
-        value = J.weight * camera * scattering_coefficient(m, at.pos, ms) * Y.power * per_unit;
+        value = J.weight * camera * scattering_coefficient(m, at.pos, ms) * Y.power * share * per_unit;
     }
     if (is_black(value)) return;
     aim_at_virtual_light(scene, r, at, Y, w);

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from .. import _core
 from .base import NativeMethod
-from .params import MethodParams
+from .params import MethodParams, budget_divisor
 from .schedules import expected_mse_slopes
 
 # Light paths per iteration: each camera path gathers every virtual light they leave (about
@@ -33,6 +33,9 @@ DEFAULT_CLAMP = "progressive"
 DEFAULT_CLAMP_DISTANCE = 0.05
 DEFAULT_CLAMP_ALPHA = 2 / 3
 DEFAULT_FREE_FLIGHT_FRACTION = 0.0
+# Camera samples per pixel and iteration, among which the light-path vertices' lights are
+# shared out (share_lights): a pixel still gathers each light once, over more of its area.
+DEFAULT_SPP_PER_ITERATION = 4
 
 
 class VirtualLightMethod(NativeMethod):
@@ -40,7 +43,7 @@ class VirtualLightMethod(NativeMethod):
 
     kernel_class: type
     shared_parameters = frozenset(
-        {"light_paths", "spp_per_iteration", "free_flight_fraction", "max_records"}
+        {"light_paths", "spp_per_iteration", "share_lights", "free_flight_fraction", "max_records"}
     )
 
     def read_spread(self, p: MethodParams, size: float) -> None:
@@ -51,7 +54,12 @@ class VirtualLightMethod(NativeMethod):
 
     def setup(self, p: MethodParams) -> None:
         self.light_paths_per_iteration = p.integer("light_paths", DEFAULT_LIGHT_PATHS, lo=1)
-        self.spp_per_iteration = p.spp_per_iteration("spp_per_iteration", 1, self.spp_budget)
+        self.spp_per_iteration = p.spp_per_iteration(
+            "spp_per_iteration",
+            budget_divisor(DEFAULT_SPP_PER_ITERATION, self.spp_budget),
+            self.spp_budget,
+        )
+        self.share_lights = p.flag("share_lights", True)
         p.light_paths_fit_in_memory("light_paths", self.light_paths_per_iteration)
         p.camera_paths_fit_in_memory("spp_per_iteration", self.spp_per_iteration, self.scene.film)
         fraction = p.number(
@@ -73,6 +81,7 @@ class VirtualLightMethod(NativeMethod):
             self.threads,
         )
         kernel.set_free_flight_fraction(fraction)
+        kernel.set_share_lights(self.share_lights)
         self.configure(kernel)
         self.gather = self.wavefront(kernel)
 
@@ -87,6 +96,7 @@ class VirtualLightMethod(NativeMethod):
         return {
             "spp": int(kernel.samples_per_pixel),
             "spp_per_iteration": self.spp_per_iteration,
+            "share_lights": self.share_lights,
             "light_paths_per_iteration": self.light_paths_per_iteration,
             "virtual_lights": int(kernel.virtual_lights),
             "gather_jobs": int(kernel.gather_jobs),
