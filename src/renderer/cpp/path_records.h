@@ -20,8 +20,8 @@
 // the strategies that can sample a path: in a homogeneous medium sigma is the mean of the
 // channels' extinction and tau = sigma * length (exact for grey media; a grey stand-in for the
 // hero-channel spectral MIS of chromatic ones), in a density grid sigma(x) is the grid's
-// extinction at x and tau integrates the mean of each majorant cell's majorant and minorant
-// along the segment (exact in cells of constant density). Null boundaries add no vertex: the
+// extinction at x and tau the exact integral of the interpolated density along the segment
+// (medium.h, flight_depth): then P_flight is the true free-flight density there too. Null boundaries add no vertex: the
 // flight multiplies over the media it crosses.
 // Special vertices:
 //   - a vertex that scattered by a delta BSDF (`delta`): p_dir is the discrete probability of

@@ -24,8 +24,10 @@ from .params import LIGHT_PATH_BYTES, MethodParams
 # Records of one iteration's subpaths (each side): the memory bound, at ~120 bytes a record.
 DEFAULT_MAX_RECORDS = 1 << 23
 # Connections (s >= 2 and t >= 2) stop at this many vertices on either side: their count grows
-# as the product of the subpaths' lengths (cpp/bdpt.h).
-DEFAULT_MAX_CONNECT = 16
+# as the product of the subpaths' lengths (cpp/bdpt.h). 4 was the best all-round value of 2, 4,
+# 8 and 16 at equal time (docs/methods.md, bdpt): deeper connections cost cbox and juice more
+# shadow rays than they return.
+DEFAULT_MAX_CONNECT = 4
 # A camera sample holds a camera subpath, a light subpath and their connections (about 200
 # bytes each with its shadow ray): counted as two light paths.
 SAMPLE_BYTES = 2 * LIGHT_PATH_BYTES
