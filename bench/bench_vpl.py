@@ -4,7 +4,7 @@ fitted slope of its fall.
     python bench/bench_vpl.py [--scenes cbox cbox-fog crepuscular smoke] [--size 128]
                               [--budgets 1 2 4 8 16 32 64] [--threads 2] [--seed 1]
                               [--methods vpl-none vpl-fixed vpl-progressive vsl pt ppb mitsuba]
-                              [--reference-spp N] [--set method.KEY=VALUE ...]
+                              [--reference-spp N] [--set method.KEY=VALUE ...] [--cpu-time]
 
 One run per scene and method renders to the largest budget, its image taken at the iteration end
 nearest each budget (the workflow's rule, renderer.progressive.iterate_to); relMSE
@@ -14,13 +14,16 @@ halves; a value within 10x of it is marked *). The slope is the least-squares fi
 log(relMSE - reference's) against log(render seconds) over the budgets whose value is
 positive. `vpl-X` is vpl with clamp=X (its other parameters at their defaults), `vsl` and the
 others at their defaults; `--set` adds parameters to every vpl and vsl run. Numbers are
-reported, never asserted: timings on a shared 2-core machine are noisy.
+reported, never asserted: timings on a shared 2-core machine are noisy (`--cpu-time` with
+`--threads 1` measures budgets in the process's CPU seconds instead, which others' work on the
+machine does not inflate).
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import time
 
 import numpy as np
 
@@ -84,6 +87,12 @@ def main() -> None:
     parser.add_argument(
         "--set", action="append", default=[], help="method.KEY=VALUE for every vpl and vsl run"
     )
+    parser.add_argument(
+        "--cpu-time",
+        action="store_true",
+        help="budgets in CPU seconds of the process (time.process_time), not wall-clock: fair "
+        "on a shared machine with --threads 1",
+    )
     args = parser.parse_args()
     check_options(parser, args)
     extra = {}
@@ -98,7 +107,11 @@ def main() -> None:
         except PgiError as e:
             parser.error(str(e))
     budgets = sorted(args.budgets)
-    print(f"{args.size}x{args.size}, {args.threads} threads, seed {args.seed}, budgets {budgets} s")
+    clock = time.process_time if args.cpu_time else None
+    print(
+        f"{args.size}x{args.size}, {args.threads} threads, seed {args.seed}, budgets {budgets} "
+        f"{'CPU ' if args.cpu_time else ''}s"
+    )
     cells = " ".join(f"{f'{b:g} s':>10}" for b in budgets)
     header = f"{'scene':<12} {'method':<16} {cells} {'slope':>6} {'it@1st':>6}"
     print(header)
@@ -115,7 +128,7 @@ def main() -> None:
                 scene, seed=args.seed, threads=args.threads, params=params
             )
             times, errors, marks, first_iterations = [], [], [], None
-            for _, elapsed in iterate_to(method, budgets):
+            for _, elapsed in iterate_to(method, budgets, clock):
                 if first_iterations is None:
                     first_iterations = method.stats()["iterations"]
                 raw = compare_images(method.image(), ref)["relmse"]

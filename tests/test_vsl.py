@@ -17,8 +17,9 @@ import math
 import numpy as np
 import pytest
 
+import stats
 from conftest import load_small
-from parity import ours, same_image
+from parity import mitsuba, ours, same_image
 from renderer import _core
 from renderer.errors import PgiError
 from renderer.methods.pt import PathTracing
@@ -72,6 +73,53 @@ def vpl(scene, x, y) -> np.ndarray:
 
 def _moved(light, position):
     return (light[0], position, *light[2:])
+
+
+# (axis, 1 - cos of the half-angle): every direction, a hemisphere, a wide cone, and the narrow
+# cones of far spheres, down to where sin(theta) from sqrt(1 - cos^2) would keep 3 digits
+NARROW_CONES = [
+    ((0, 0, 1), 2.0), (tuple(unit((0.4, -0.7, 0.2))), 1.0), ((0, -1, 0), 0.3),
+    (tuple(unit((-0.3, 0.1, -0.9))), 1e-3), ((1, 0, 0), 1e-7), (tuple(unit((1, 2, 3))), 1e-10),
+]  # fmt: skip
+CONE_LEVEL = stats.sidak(stats.ALPHA, len(NARROW_CONES))
+
+
+def cone_coordinates(d: np.ndarray, axis) -> tuple[np.ndarray, np.ndarray]:
+    """1 - cos(theta) to the axis (as |d - axis|^2 / 2, which keeps its digits near the axis)
+    and the azimuth about it."""
+    basis = stats.frame(np.asarray(axis, np.float64))
+    a = 0.5 * ((d - basis[2]) ** 2).sum(axis=1)
+    phi = np.mod(np.arctan2(d @ basis[1], d @ basis[0]), 2 * math.pi)
+    return a, phi
+
+
+def cone_histogram(d: np.ndarray, axis, one_minus_cos: float, bins: int = 20) -> np.ndarray:
+    """Counts over bins of equal solid angle of the cone: equal steps of 1 - cos(theta) times
+    equal steps of azimuth; directions outside the cone in one last bin."""
+    a, phi = cone_coordinates(d, axis)
+    q = a / one_minus_cos
+    inside = q < 1 + 1e-9
+    edges = [np.linspace(0, 1 + 1e-9, bins + 1), np.linspace(0, 2 * math.pi, bins + 1)]
+    h, _, _ = np.histogram2d(q[inside], phi[inside], bins=edges)
+    return np.append(h.ravel(), np.count_nonzero(~inside))
+
+
+@pytest.mark.parametrize("axis, one_minus_cos", NARROW_CONES)
+def test_cone_sampling_chi2(axis, one_minus_cos):
+    """vsl's cone strategy is uniform in solid angle within the cone (chi-square over bins of
+    equal solid angle, which (1 - cos, azimuth) gives for any width), unit and inside it, also
+    in the narrowest cone; the test rejects directions drawn with u1^2 (a control)."""
+    n, bins = 200_000, 20
+    u = np.random.default_rng(int(-math.log10(one_minus_cos) * 10) + 40).random((n, 2))
+    d = _core.sample_uniform_narrow_cone(axis, one_minus_cos, u)
+    np.testing.assert_allclose(np.linalg.norm(d, axis=1), 1, rtol=1e-13)
+    expected = np.append(np.full(bins * bins, n / bins**2), 0.0)
+    result = stats.chi2_test(cone_histogram(d, axis, one_minus_cos, bins), expected)
+    assert result.passed(CONE_LEVEL), result
+    u[:, 0] **= 2
+    control = cone_histogram(_core.sample_uniform_narrow_cone(axis, one_minus_cos, u), axis,
+                             one_minus_cos, bins)  # fmt: skip
+    assert not stats.chi2_test(control, expected).passed(CONE_LEVEL)
 
 
 def test_far_field_is_the_point_light():
@@ -190,10 +238,10 @@ def test_a_vanishing_radius_is_vpl_unclamped():
     np.testing.assert_allclose(images[0], images[1], rtol=1e-6, atol=0)
 
 
-def test_converges_to_pt_as_the_radius_shrinks():
+def test_a_wider_fixed_radius_is_darker():
     """cbox-fog: with a fixed radius the image is darker than with a vanishing one (the same
-    random numbers: paired per iteration), the more so the larger the radius; with the shrinking
-    radius of the schedule vsl agrees with pt (mean and blocks)."""
+    random numbers: paired per iteration), the more so the larger the radius (the shrinking
+    radius's agreement with pt and Mitsuba: below)."""
     scene = load_small("cbox-fog", RES, RES)
 
     def per_iteration_means(radius: float) -> np.ndarray:
@@ -210,9 +258,46 @@ def test_converges_to_pt_as_the_radius_shrinks():
     losses = {pair: loss(*pair) for pair in ((0.15, 1e-9), (0.5, 0.15))}
     print("relative loss (and its standard error), wider radius against narrower:", losses)
     assert all(mean > 5 * se for mean, se in losses.values())
-    shrinking = ours(VirtualSphericalLights, scene, 48, seed=1, light_paths=64, spp_per_iteration=2)
-    pt = ours(PathTracing, scene, 16, seed=2, spp_per_wave=64)
-    ok, why = same_image(shrinking, pt, alpha=1e-3, block=4)
+
+
+# (scene, vsl iterations, pt samples per pixel of each of its 16 images): the shipped media
+# scenes, each with what it adds
+MEDIA_SCENES = {
+    "cbox-fog": (64, 128),  # homogeneous fog lit by an area light inside it
+    "crepuscular": (256, 512),  # a directional light through null windows, the camera in fog
+    "smoke": (64, 128),  # point lights inside a density grid (ratio-tracked camera segments)
+    "fog-perlin": (64, 128),  # a procedural grid
+}
+# r_1 for the agreement checks: 0.03 of the scene's radius, shrinking on the default schedule.
+# From the default 0.1 the spread's bias is still visible after 48 iterations (cbox-fog 2-5 %
+# darker than pt over three seeds, where the image mean's standard error is about 1 %).
+CHECK_RADIUS = 0.03
+
+
+def _shrinking(scene, iterations: int, seed: int):
+    return ours(VirtualSphericalLights, scene, iterations, seed=seed, light_paths=64,
+                spp_per_iteration=2, sphere_radius_relative=CHECK_RADIUS)  # fmt: skip
+
+
+@pytest.mark.parametrize("name", MEDIA_SCENES)
+def test_shrinking_radius_agrees_with_pt(name):
+    """With the radius shrinking on its schedule, vsl's image agrees with pt's at a modest
+    budget: the image mean and 8x8 blocks of 16x16 pixels (chi-square and largest |z|), with
+    tolerances from the measured variance of both. Measured false alarms: none in 5 seeds of
+    each scene."""
+    iterations, spp = MEDIA_SCENES[name]
+    scene = load_small(name, 16, 16)
+    pt = ours(PathTracing, scene, 16, seed=2, spp_per_wave=spp)
+    ok, why = same_image(_shrinking(scene, iterations, seed=1), pt, alpha=1e-3, block=8)
+    assert ok, f"{name}: {why}"
+
+
+def test_shrinking_radius_agrees_with_mitsuba():
+    """cbox-fog against Mitsuba's volpath, as against pt above."""
+    scene = load_small("cbox-fog", 16, 16)
+    ok, why = same_image(
+        _shrinking(scene, 64, seed=3), mitsuba(scene, 16, 256), alpha=1e-3, block=8
+    )
     assert ok, why
 
 

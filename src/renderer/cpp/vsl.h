@@ -53,12 +53,8 @@ inline RGB spherical_light_transfer(const Scene &scene, const GatherPoint &x, co
     const double one_minus_cos = omega / (2 * kPi);  // of the cone's half-angle, in (0, 2]
     Sampler s = rng.split(kSphereDirections);
     const double u[6] = {s.next(), s.next(), s.next(), s.next(), s.next(), s.next()};
-    // Uniform in the cone, its sine from 1 - cos directly (a narrow cone keeps its digits).
-    const double a = u[0] * one_minus_cos;
-    const double cos_theta = 1 - a, sin_theta = std::sqrt(std::max(0.0, a * (2 - a)));
-    const double phi = 2 * kPi * u[1];
     Vec3 directions[3];
-    directions[0] = Frame(w).to_world({sin_theta * std::cos(phi), sin_theta * std::sin(phi), cos_theta});
+    directions[0] = square_to_uniform_narrow_cone(w, one_minus_cos, u[0], u[1]);
     double unused;
     directions[1] = sample_gather_direction(scene, x, u[2], u[3], unused);
     directions[2] = -sample_virtual_light_lobe(scene, y, u[4], u[5], unused);

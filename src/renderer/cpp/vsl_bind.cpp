@@ -8,6 +8,24 @@ using namespace nb::literals;
 
 static void bind_vsl(nb::module_ &m) {
     m.def(
+        "sample_uniform_narrow_cone",
+        [](V3 axis, double one_minus_cos, Array<double> u) {
+            if (u.ndim() != 2 || u.shape(1) != 2) throw std::invalid_argument("u must be (n, 2)");
+            if (!(one_minus_cos > 0 && one_minus_cos <= 2))
+                throw std::invalid_argument("one_minus_cos must lie in (0, 2]");
+            const size_t n = u.shape(0);
+            const Vec3 a = normalize(vec(axis));
+            std::vector<double> dir(3 * n);
+            for (size_t i = 0; i < n; ++i) {
+                const Vec3 d = square_to_uniform_narrow_cone(a, one_minus_cos, u.data()[2 * i], u.data()[2 * i + 1]);
+                for (int k = 0; k < 3; ++k) dir[3 * i + size_t(k)] = d[k];
+            }
+            return to_numpy(std::move(dir), {n, 3});
+        },
+        "axis"_a, "one_minus_cos"_a, "u"_a,
+        "Directions uniform in solid angle within the cone about `axis` whose half-angle has "
+        "1 - cos = one_minus_cos (vsl's cone strategy), for uniforms u (n, 2).");
+    m.def(
         "spherical_light_transfers",
         [](const Scene &s, V3 x_pos, V3 x_wo, int x_triangle, int x_medium, VirtualLightKind kind, V3 y_pos,
            V3 y_axis, int y_triangle, int y_medium, int y_light, double radius, int64_t n, uint64_t seed) {
