@@ -257,3 +257,17 @@ def mean_agrees(a: Estimate, b: Estimate) -> tuple[bool, str]:
     """The image means agree: largest |z| over the channels and their chi-square."""
     result = agreement(a.image_mean(), b.image_mean(), ALPHA)
     return result.passes, str(result)
+
+
+def same_image_coarse_and_fine(
+    a: Estimate, b: Estimate, alpha: float = ALPHA, coarse: int = 8, fine: int = 4
+) -> tuple[bool, str]:
+    """Two renders of one image, for estimates whose pixels are heavy-tailed (fog, virtual
+    lights): the image mean (largest |z|); coarse x coarse blocks (chi-square and |z|: their
+    means are close to normal even where fine blocks of a few dozen images still have heavy
+    tails that inflate a chi-square); fine x fine blocks by the Bonferroni bound on |z|."""
+    mean = agreement(a.image_mean(), b.image_mean(), alpha)
+    coarse_blocks = agreement(a.blocks(coarse), b.blocks(coarse), alpha)
+    fine_blocks = agreement(a.blocks(fine), b.blocks(fine), alpha)
+    ok = mean.z_ok and coarse_blocks.passes and fine_blocks.z_ok
+    return ok, f"mean {mean}; {coarse}x{coarse} {coarse_blocks}; {fine}x{fine} {fine_blocks}"

@@ -841,6 +841,11 @@ def test_budgets_end_at_the_nearest_iteration_end(tmp_path, monkeypatch):
     method = _ClockedMethod(None, seed=0, threads=1, params={})
     got = list(progressive.iterate_to(method, [1.5, 1.0, 2.0]))
     assert got == [(1.0, 0.7), (1.5, pytest.approx(1.3)), (2.0, pytest.approx(1.9))]
+    # ...and by another clock when given one (the benchmarks' CPU seconds): half as fast here
+    _ClockedMethod.clock[0] = 0.0
+    method = _ClockedMethod(None, seed=0, threads=1, params={})
+    got = list(progressive.iterate_to(method, [0.95], clock=lambda: 0.5 * _ClockedMethod.clock[0]))
+    assert got == [(0.95, pytest.approx(0.95))] and method.iterations == 3
 
 
 def test_a_failed_final_write_names_the_snapshots_it_kept(tmp_path, monkeypatch, capsys):
