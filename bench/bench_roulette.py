@@ -26,16 +26,17 @@ from __future__ import annotations
 
 import argparse
 import hashlib
+import time
 
 import numpy as np
 
-from benchlib import CACHE, REFERENCE_SEEDS, at_least, run_for_cpu, scene_at, seconds
+from benchlib import CACHE, REFERENCE_SEEDS, at_least, scene_at, seconds
 from compare.metrics import reference_error
 from renderer.errors import PgiError
 from renderer.fingerprint import render_fingerprint
 from renderer.imageio import read_exr, write_exr
 from renderer.methods import get_method
-from renderer.progressive import available_cores, check_threads
+from renderer.progressive import available_cores, check_threads, run_for
 from renderer.scene.sources import scene_content_digest
 
 METHODS = ("pt", "lt", "pm", "sppm", "ppb", "bdpt", "mitsuba")
@@ -74,8 +75,12 @@ def pt_reference(name: str, size: int, iterations: int, threads: int) -> tuple[n
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scenes", nargs="+", default=list(SCENES), choices=list(SCENES))
-    parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
+    parser.add_argument(
+        "--scenes", nargs="+", default=list(SCENES), choices=list(SCENES), help="scenes to run"
+    )
+    parser.add_argument(
+        "--methods", nargs="+", default=list(METHODS), choices=METHODS, help="methods to run"
+    )
     parser.add_argument("--size", type=at_least(1), default=32, help="film width and height")
     parser.add_argument(
         "--seconds", type=seconds, default=5.0, help="equal-time budget, in CPU seconds"
@@ -121,7 +126,7 @@ def main() -> None:
                     method = get_method(method_id)(
                         ruled, seed=seed, threads=args.threads, params={}
                     )
-                    run_for_cpu(method, args.seconds)
+                    run_for(method, args.seconds, clock=time.process_time)
                     image = method.image()
                     ratios.append(image.mean() / ref.mean())
                     errors.append(((image - ref) ** 2).mean() / ref.mean() ** 2 - own)

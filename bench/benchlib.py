@@ -7,7 +7,6 @@ from __future__ import annotations
 import argparse
 import hashlib
 import math
-import time
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -96,20 +95,6 @@ def mitsuba_reference(name: str, size: int, spp: int) -> tuple[np.ndarray, float
             write_exr(path, image)
         halves.append(read_exr(path).astype(np.float64))
     return 0.5 * (halves[0] + halves[1]), reference_error(*halves)["ref_relmse"]
-
-
-def run_for_cpu(method, seconds: float) -> float:
-    """``method``'s iterations until the process has spent ``seconds`` of CPU time on them (all
-    its threads', Mitsuba's included), at least one; returns that CPU time. On a shared
-    machine the wall clock measures the other jobs too; the CPU time of the run does not."""
-    start = time.process_time()
-    iteration = 0
-    while True:
-        method.run_iteration(iteration)
-        iteration += 1
-        spent = time.process_time() - start
-        if spent >= seconds:
-            return spent
 
 
 def relmse_less_reference(image: np.ndarray, ref: np.ndarray, ref_err: float) -> tuple[float, bool]:

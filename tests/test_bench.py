@@ -12,7 +12,15 @@ from pathlib import Path
 import pytest
 
 BENCH = Path(__file__).resolve().parent.parent / "bench"
-SCRIPTS = ("bench_pt", "bench_ppb", "bench_media", "bench_light_methods", "bench_vpl")
+SCRIPTS = (
+    "bench_pt",
+    "bench_ppb",
+    "bench_media",
+    "bench_light_methods",
+    "bench_vpl",
+    "bench_bdpt",
+    "bench_roulette",
+)
 sys.path.insert(0, str(BENCH))
 
 import benchlib  # noqa: E402
@@ -52,6 +60,9 @@ def test_every_option_is_explained(script):
         ("bench_light_methods", ["--size", "0"], "expected an integer >= 1"),
         ("bench_vpl", ["--budgets", "1", "nan"], "expected a finite number of seconds > 0"),
         ("bench_vpl", ["--set", "clamp=none"], "expected method.KEY=VALUE"),
+        ("bench_bdpt", ["--seconds", "0"], "expected a finite number of seconds > 0"),
+        ("bench_roulette", ["--seeds", "0"], "expected an integer >= 1"),
+        ("bench_roulette", ["--threads", "64"], "--threads 64 asked for"),
     ],
 )
 def test_a_bad_option_is_one_line_before_any_work(script, args, message):

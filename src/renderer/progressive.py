@@ -103,10 +103,10 @@ def iterate_to(
             return
 
 
-def run_for(method: Any, seconds: float) -> float:
+def run_for(method: Any, seconds: float, clock: Callable[[], float] | None = None) -> float:
     """``method``'s iterations up to the end nearest ``seconds`` of render time (at least
-    one); returns the render seconds they took."""
-    return [elapsed for _, elapsed in iterate_to(method, [seconds])][-1]
+    one); returns the render seconds they took. ``clock`` as timed_iterations'."""
+    return [elapsed for _, elapsed in iterate_to(method, [seconds], clock)][-1]
 
 
 def available_cores() -> int:
