@@ -1,0 +1,137 @@
+// Bindings of the vrl / vbl kernel (vrl.h, ray_lights.h) and of the probes its tests use: the
+// density on a ray light, the beam's disc mean of 1 / d^2, and single-pair estimates.
+#include "virtual_lights_bind.h"
+#include "vrl.h"
+
+namespace pgi::bind {
+
+using namespace nb::literals;
+
+namespace {
+
+RayLight probe_ray_light(const Scene &s, V3 origin, V3 direction, double length, int medium) {
+    if (medium < 0 || medium >= int(s.media.size()))
+        throw std::invalid_argument("ray light: a medium of the scene expected");
+    if (!(length > 0) || !std::isfinite(length)) throw std::invalid_argument("ray light: a positive length expected");
+    RayLight l;
+    l.origin = vec(origin);
+    l.dir = normalize(vec(direction));
+    l.length = length;
+    l.power = RGB(1.0);
+    l.medium = medium;
+    return l;
+}
+
+// Samples v for uniforms u (n,) on the ray light (origin, direction, [0, length)) by the density
+// about the camera line (camera_origin, camera_direction), and their densities.
+auto line_to_line_samples(V3 origin, V3 direction, double length, V3 camera_origin, V3 camera_direction,
+                          double min_h, double soften, Array<double> u) {
+    const LineToLine s = line_to_line(vec(origin), normalize(vec(direction)), length, vec(camera_origin),
+                                      normalize(vec(camera_direction)), min_h, soften);
+    if (!s.valid) throw std::invalid_argument("line_to_line: no density (empty or infinite ray light)");
+    const size_t n = u.shape(0);
+    std::vector<double> v(n), pdf(n);
+    for (size_t i = 0; i < n; ++i) {
+        v[i] = line_to_line_sample(s, u.data()[i]);
+        pdf[i] = line_to_line_pdf(s, v[i]);
+    }
+    return std::make_tuple(to_numpy(std::move(v), {n}), to_numpy(std::move(pdf), {n}), s.uniform);
+}
+
+auto line_to_line_pdfs(V3 origin, V3 direction, double length, V3 camera_origin, V3 camera_direction, double min_h,
+                       double soften, Array<double> v) {
+    const LineToLine s = line_to_line(vec(origin), normalize(vec(direction)), length, vec(camera_origin),
+                                      normalize(vec(camera_direction)), min_h, soften);
+    const size_t n = v.shape(0);
+    std::vector<double> pdf(n);
+    for (size_t i = 0; i < n; ++i) pdf[i] = line_to_line_pdf(s, v.data()[i]);
+    return to_numpy(std::move(pdf), {n});
+}
+
+// The connection's transmittance for a probe: both ends in one homogeneous medium, no occluder.
+RGB probe_connection(const Scene &s, int medium, const RayLightSample &x) {
+    const Medium &m = s.media[size_t(medium)];
+    if (m.type != MediumType::Homogeneous)
+        throw std::invalid_argument("ray light probes: a homogeneous medium expected");
+    return beer_lambert(m.sigma_t, length(x.y - x.x));
+}
+
+}  // namespace
+
+static void bind_vrl(nb::module_ &m) {
+    m.def("line_to_line_samples", &line_to_line_samples, "origin"_a, "direction"_a, "length"_a, "camera_origin"_a,
+          "camera_direction"_a, "min_h"_a, "soften"_a, "u"_a,
+          "Points v on a ray light drawn by the density ~ 1 / distance to the camera line for "
+          "uniforms u, their densities, and whether the lines counted as parallel (uniform v).");
+    m.def("line_to_line_pdfs", &line_to_line_pdfs, "origin"_a, "direction"_a, "length"_a, "camera_origin"_a,
+          "camera_direction"_a, "min_h"_a, "soften"_a, "v"_a);
+    m.def("beam_geometry_factor", &beam_geometry_factor, "z"_a, "rho2"_a, "radius"_a,
+          "The disc's mean of 1 / |x - y'|^2 times (d^2 + r^2), x at height z and squared radial "
+          "distance rho2 from a disc of `radius` (ray_lights.h).");
+    m.def(
+        "ray_light_segment_estimates",
+        [](const Scene &s, V3 camera_origin, V3 camera_direction, double camera_length, int camera_medium,
+           V3 light_origin, V3 light_direction, double light_length, int light_medium, double radius, int64_t n,
+           uint64_t seed) {
+            const RayLight l = probe_ray_light(s, light_origin, light_direction, light_length, light_medium);
+            const V3 wo{-camera_direction[0], -camera_direction[1], -camera_direction[2]};
+            const GatherPoint c = probe_gather_point(s, camera_origin, wo, -1, camera_medium);
+            const Medium &mc = s.media[size_t(camera_medium)];
+            if (mc.type != MediumType::Homogeneous || camera_medium != light_medium)
+                throw std::invalid_argument("ray_light_segment_estimates: one homogeneous medium expected");
+            auto camera_tr = [&](double u) { return beer_lambert(mc.sigma_t, u); };
+            const size_t count = size_t(std::max<int64_t>(0, n));
+            std::vector<double> out(3 * count);
+            MediumStats ms;
+            for (size_t i = 0; i < count; ++i) {
+                Sampler rng(stream_key(seed, uint64_t(i), 0x56524cull));
+                const RayLightSample x =
+                    ray_light_to_segment(s, l, c, camera_length, camera_tr, radius, 0.0, rng, ms);
+                const RGB k = is_black(x.value) ? RGB(0.0) : x.value * probe_connection(s, camera_medium, x);
+                for (int a = 0; a < 3; ++a) out[3 * i + a] = k[a];
+            }
+            return to_numpy(std::move(out), {count, 3});
+        },
+        "scene"_a, "camera_origin"_a, "camera_direction"_a, "camera_length"_a, "camera_medium"_a, "light_origin"_a,
+        "light_direction"_a, "light_length"_a, "light_medium"_a, "radius"_a, "n"_a, "seed"_a,
+        "n independent estimates of a ray light's (power 1, depth 0) transport to a camera segment "
+        "(throughput 1), with the connection's transmittance and no occluder (ray_lights.h).");
+    m.def(
+        "ray_light_point_estimates",
+        [](const Scene &s, V3 x_pos, V3 x_wo, int x_triangle, int x_medium, V3 light_origin, V3 light_direction,
+           double light_length, int light_medium, double radius, int64_t n, uint64_t seed) {
+            const RayLight l = probe_ray_light(s, light_origin, light_direction, light_length, light_medium);
+            const GatherPoint x = probe_gather_point(s, x_pos, x_wo, x_triangle, x_medium);
+            const size_t count = size_t(std::max<int64_t>(0, n));
+            std::vector<double> out(3 * count);
+            MediumStats ms;
+            for (size_t i = 0; i < count; ++i) {
+                Sampler rng(stream_key(seed, uint64_t(i), 0x56524cull));
+                const RayLightSample y = ray_light_to_point(s, l, x, radius, 0.0, rng, ms);
+                const RGB k = is_black(y.value) ? RGB(0.0) : y.value * probe_connection(s, light_medium, y);
+                for (int a = 0; a < 3; ++a) out[3 * i + a] = k[a];
+            }
+            return to_numpy(std::move(out), {count, 3});
+        },
+        "scene"_a, "x_pos"_a, "x_wo"_a, "x_triangle"_a, "x_medium"_a, "light_origin"_a, "light_direction"_a,
+        "light_length"_a, "light_medium"_a, "radius"_a, "n"_a, "seed"_a,
+        "n independent estimates of a ray light's (power 1) transport to the gather point x, with the "
+        "connection's transmittance and no occluder (ray_lights.h).");
+
+    using K = VirtualRayLights;
+    auto cls = bind_kernel<K>(m, "VirtualRayLights");
+    bind_gathering(cls)
+        .def("set_clamp", [](K &k, PointTransfer::Clamp mode, double distance, double alpha) {
+                 k.transfer().set_clamp(mode, distance, alpha);
+             }, "mode"_a, "distance"_a, "alpha"_a,
+             "The point lights' clamp, as vpl's.")
+        .def("clamp_distance", [](const K &k, int64_t iteration) { return k.transfer().distance(iteration); },
+             "iteration"_a)
+        .def("set_beam_radius", [](K &k, double initial, double alpha) { k.extra().set_beam_radius(initial, alpha); },
+             "initial"_a, "alpha"_a, "Beams (vbl) of radius r_i = r_1 i^(alpha - 1), world units.")
+        .def("beam_radius", [](const K &k, int64_t iteration) { return k.extra().radius(iteration); },
+             "iteration"_a, "The beams' radius (0: rays) of iteration `iteration` (0-based).");
+}
+PGI_BINDING("vrl", bind_vrl);
+
+}  // namespace pgi::bind
