@@ -48,6 +48,9 @@ auto line_to_line_pdfs(V3 origin, V3 direction, double length, V3 camera_origin,
     return to_numpy(std::move(pdf), {n});
 }
 
+// Joins closer than this are skipped in probes (the kernel's bound for a scene of radius 1).
+constexpr double kProbeMinDistance2 = kCoincidentFraction * kCoincidentFraction;
+
 // The connection's transmittance for a probe: both ends in one homogeneous medium, no occluder.
 RGB probe_connection(const Scene &s, int medium, const RayLightSample &x) {
     const Medium &m = s.media[size_t(medium)];
@@ -86,7 +89,7 @@ static void bind_vrl(nb::module_ &m) {
             for (size_t i = 0; i < count; ++i) {
                 Sampler rng(stream_key(seed, uint64_t(i), 0x56524cull));
                 const RayLightSample x =
-                    ray_light_to_segment(s, l, c, camera_length, camera_tr, radius, 0.0, rng, ms);
+                    ray_light_to_segment(s, l, c, camera_length, camera_tr, radius, kProbeMinDistance2, rng, ms);
                 const RGB k = is_black(x.value) ? RGB(0.0) : x.value * probe_connection(s, camera_medium, x);
                 for (int a = 0; a < 3; ++a) out[3 * i + a] = k[a];
             }
@@ -107,7 +110,7 @@ static void bind_vrl(nb::module_ &m) {
             MediumStats ms;
             for (size_t i = 0; i < count; ++i) {
                 Sampler rng(stream_key(seed, uint64_t(i), 0x56524cull));
-                const RayLightSample y = ray_light_to_point(s, l, x, radius, 0.0, rng, ms);
+                const RayLightSample y = ray_light_to_point(s, l, x, radius, kProbeMinDistance2, rng, ms);
                 const RGB k = is_black(y.value) ? RGB(0.0) : y.value * probe_connection(s, light_medium, y);
                 for (int a = 0; a < 3; ++a) out[3 * i + a] = k[a];
             }
