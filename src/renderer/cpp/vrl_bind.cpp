@@ -1,7 +1,7 @@
 // Bindings of the vrl / vbl kernel (vrl.h, ray_lights.h) and of the probes its tests use: the
 // density on a ray light, the beam's disc mean of 1 / d^2, and single-pair estimates.
 #include "virtual_lights_bind.h"
-#include "vrl.h"
+#include "vbl.h"
 
 namespace pgi::bind {
 

@@ -11,12 +11,13 @@ image converges to vrl's; ``cpp/vbl.h`` states the rate and why.
 from __future__ import annotations
 
 from .params import MethodParams
+from .schedules import expected_mse_slopes
 from .vrl import VirtualRayLights
 
 # r_1 relative to the scene's bounding-sphere radius, and the schedule's alpha (cpp/vbl.h:
-# r_i = r_1 i^(alpha - 1); 1/2 gives MSE ~ log(n) / n).
+# r_i = r_1 i^(alpha - 1), the MSE falls at least as n^-min(alpha, 2 (1 - alpha))).
 DEFAULT_BEAM_RADIUS = 0.02
-DEFAULT_BEAM_ALPHA = 0.5
+DEFAULT_BEAM_ALPHA = 2 / 3
 
 
 class VirtualBeamLights(VirtualRayLights):
@@ -39,10 +40,17 @@ class VirtualBeamLights(VirtualRayLights):
 
     def method_stats(self) -> dict:
         kernel, last = self.gather.kernel, max(self.iterations - 1, 0)
+        # the beams' schedule, and the point lights' clamp where it shrinks too (cpp/vbl.h: a
+        # bias of order r, d = 1)
+        kernels = [(self.beam_alpha, 1)]
+        if self.clamp == "progressive":
+            kernels.append((self.clamp_alpha, 1))
         return {
             **super().method_stats(),
             # the last iteration's radius, world units
             "beam_radius_world": float(kernel.beam_radius(last)),
             "initial_beam_radius_world": self.beam_radius,
             "beam_alpha": self.beam_alpha,
+            "consistent": self.clamp != "fixed" and self.beam_alpha < 1,
+            **expected_mse_slopes(kernels),
         }
