@@ -3,7 +3,8 @@ and the fitted slope of its fall.
 
     python bench/bench_vrl.py [--scenes juice fog-perlin cbox-fog] [--size 64]
                               [--budgets 2 4 8 16 32 64] [--seed 1]
-                              [--methods vrl vbl ppb vpl vsl pt mitsuba] [--reference-spp N]
+                              [--methods vrl vrl-phase vbl vbl-phase ppb vpl vsl pt mitsuba]
+                              [--reference-spp N]
 
 Every run renders on one thread and is timed by the CPU time of this process (time.process_time),
 not by the wall clock, which the other work on a shared machine disturbs; Mitsuba's CPU time
@@ -24,7 +25,14 @@ from bench_vpl import fitted_slope
 from compare.metrics import compare_images, reference_ok
 from renderer.methods import get_method
 
-METHODS = ("vrl", "vbl", "ppb", "vpl", "vsl", "pt", "mitsuba")
+# label -> (method, parameters): the defaults, and vrl and vbl with phase-aware sampling
+METHODS = {
+    "vrl": ("vrl", {}),
+    "vrl-phase": ("vrl", {"phase_sampling": True}),
+    "vbl": ("vbl", {}),
+    "vbl-phase": ("vbl", {"phase_sampling": True}),
+    **{m: (m, {}) for m in ("ppb", "vpl", "vsl", "pt", "mitsuba")},
+}
 REFERENCE_SPP = {"juice": 4096, "fog-perlin": 4096, "cbox-fog": 8192}
 
 
@@ -68,8 +76,11 @@ def main() -> None:
         ref, own = benchlib.mitsuba_reference(name, args.size, spp)
         print(f"{name:<12} (reference) own relMSE {own:.3e} ({spp} spp)", flush=True)
         scene = benchlib.scene_at(name, args.size)
-        for method_id in args.methods:
-            method = get_method(method_id)(scene, seed=args.seed, threads=args.threads, params={})
+        for label in args.methods:
+            method_id, params = METHODS[label]
+            method = get_method(method_id)(
+                scene, seed=args.seed, threads=args.threads, params=params
+            )
             times, errors, cells = [], [], []
             for spent, image in cpu_time_curve(method, budgets):
                 raw = compare_images(image, ref)["relmse"]
@@ -77,7 +88,7 @@ def main() -> None:
                 errors.append(raw - own)
                 cells.append(f"{raw - own:9.3e}{' ' if reference_ok(raw, own) else '*'}")
             slope = fitted_slope(times, errors)
-            print(f"{name:<12} {method_id:<8} {' '.join(cells)} {slope:6.2f}", flush=True)
+            print(f"{name:<12} {label:<9} {' '.join(cells)} {slope:6.2f}", flush=True)
 
 
 if __name__ == "__main__":

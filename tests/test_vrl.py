@@ -4,12 +4,14 @@
   density it reports (chi-square; expected counts by integrating the density), integrates to
   one, is proportional to 1 / the distance to the camera line, and the test rejects a uniform
   density; skew, nearly parallel, parallel (uniform) and intersecting lines.
+- The phase-aware equi-angular density (an option) follows the density it reports (chi-square)
+  and differs from the plain one.
 - The beam's mean of 1 / d^2 over its disc (vbl) equals a numerical quadrature over the disc,
   in and off the disc's plane, and tends to 1 / d^2 as r -> 0.
 - For one ray light and one camera segment (or one surface point), the estimator's mean equals
   a quadrature of the double (single) integral, with the tolerance from the samples' variance:
   skew, nearly parallel, parallel, nearly intersecting, short segments, and beams; crossing
-  lines give finite values.
+  lines give finite values; the same with phase-aware sampling.
 - vrl and vbl agree with pt and Mitsuba on cbox-fog, with pt on scenes with a density grid, glass
   and a directional light (image mean and 4x4 blocks, tolerances from the measured variance).
 - vbl's radius follows its schedule and vbl tends to vrl as r -> 0. (Same image for any thread
@@ -75,7 +77,7 @@ LINE_CASES = {
     "intersecting": ((0.8, 0.5, -0.5), (0.0, 0.6, 0.8), 1.0, (0.0, 0.875, 0.0), X),
 }
 MIN_H = 1e-9
-N_TESTS = len(LINE_CASES)
+N_TESTS = len(LINE_CASES) + 3  # and the phase-aware cases below
 LEVEL = stats.sidak(stats.ALPHA, N_TESTS)
 SAMPLES = 200_000
 
@@ -149,6 +151,60 @@ def test_parallel_lines_draw_uniformly_and_the_softened_density_integrates_to_on
 
     mass = integrate.quad(lambda x: pdf(x)[0], 0, length, points=[0.5], limit=200)[0]
     assert mass == pytest.approx(1.0, abs=1e-8)
+
+
+# (origin, direction, t0, t1, centre, centre_out, g_line, g_centre)
+PHASE_CASES = {
+    "forward": ((0, 0, 0), (1, 0, 0), 0.0, 4.0, (1.5, 0.6, 0), (1, 0, 0), 0.9, 0.9),
+    "backward-and-forward": (
+        (0, 0, 0),
+        (1, 0, 0),
+        0.0,
+        3.0,
+        (1.0, 0.3, 0.2),
+        (-1, 0, 0),
+        -0.7,
+        0.8,
+    ),
+    "infinite": ((0, 0, 0), (0, 0, 1), 0.5, np.inf, (0.2, 0.1, 1.0), (0, 1, 0), 0.95, 0.3),
+}
+
+
+@pytest.mark.parametrize("case", PHASE_CASES)
+def test_phase_aware_equiangular_density_chi2(case):
+    """The phase-aware point follows the density it reports, which integrates to one; the
+    plain equi-angular density is rejected (the test has power)."""
+    o, d, t0, t1, c, out, g_line, g_centre = PHASE_CASES[case]
+    rng = np.random.default_rng(5 + list(PHASE_CASES).index(case))
+    args = (o, d, t0, t1, c, out, g_line, g_centre)
+    t, pdf, _ = _core.phase_aware_samples(*args, rng.random(SAMPLES), np.zeros(1))
+    assert np.all((t >= t0) & (t <= t1))
+
+    def density(x):
+        return _core.phase_aware_samples(*args, np.zeros(0), np.ascontiguousarray(x))[2]
+
+    np.testing.assert_allclose(pdf, density(t), rtol=1e-10)
+    pilot = _core.phase_aware_samples(*args, rng.random(20_000), np.zeros(1))[0]
+    edges = np.unique(np.quantile(pilot, np.linspace(0, 1, 41)))
+    edges[0] = t0
+    if np.isfinite(t1):
+        edges[-1] = t1
+    masses = _bin_masses(density, edges)
+    tail = (
+        integrate.quad(lambda x: density(np.array([x]))[0], edges[-1], np.inf)[0]
+        if np.isinf(t1)
+        else 0.0
+    )
+    assert masses.sum() + tail == pytest.approx(1.0, abs=1e-6)
+    inside = t < edges[-1]
+    observed = np.append(np.histogram(t[inside], edges)[0], np.count_nonzero(~inside))
+    expected = np.append(masses, tail) * SAMPLES
+    assert stats.chi2_test(observed, expected).passed(LEVEL)
+    plain, _ = _core.equiangular_samples(o, d, t0, t1, c, rng.random(SAMPLES))
+    observed = np.append(
+        np.histogram(plain[plain < edges[-1]], edges)[0], np.count_nonzero(plain >= edges[-1])
+    )
+    assert not stats.chi2_test(observed, expected).passed(LEVEL)
 
 
 # --------------------------------------------------------------------------- the beam's disc
@@ -263,16 +319,18 @@ def _check_mean(samples: np.ndarray, expected: float, label: str):
     assert abs(z) < 4.5, f"{label}: z = {z:.2f}"
 
 
+@pytest.mark.parametrize("phase_aware", [False, True])
 @pytest.mark.parametrize("radius", [0.0, 0.05])
 @pytest.mark.parametrize("case", PAIR_CASES)
-def test_segment_estimator_mean_is_the_double_integral(case, radius):
+def test_segment_estimator_mean_is_the_double_integral(case, radius, phase_aware):
     camera, light = PAIR_CASES[case][:3], PAIR_CASES[case][3:]
     scene = probe_scene()
     values = _core.ray_light_segment_estimates(
-        scene, *camera, 0, *light, 0, radius, PAIR_SAMPLES, 7
+        scene, *camera, 0, *light, 0, radius, phase_aware, PAIR_SAMPLES, 7
     )
     np.testing.assert_array_equal(values[:, 0], values[:, 2])  # grey
-    _check_mean(values[:, 0], _pair_quadrature(camera, light, radius), f"{case} r={radius}")
+    label = f"{case} r={radius} phase-aware {phase_aware}"
+    _check_mean(values[:, 0], _pair_quadrature(camera, light, radius), label)
 
 
 def test_crossing_lines_give_finite_values():
@@ -285,20 +343,22 @@ def test_crossing_lines_give_finite_values():
     )
     for light in (crossing, collinear):
         for radius in (0.0, 0.05):
-            values = _core.ray_light_segment_estimates(
-                probe_scene(), *camera, 0, *light, 0, radius, 20_000, 3
-            )
-            assert np.all(np.isfinite(values))
-            assert values.max() > 0 or (light is collinear and radius == 0)
+            for phase_aware in (False, True):
+                values = _core.ray_light_segment_estimates(
+                    probe_scene(), *camera, 0, *light, 0, radius, phase_aware, 20_000, 3
+                )
+                assert np.all(np.isfinite(values))
+                assert values.max() > 0 or (light is collinear and radius == 0)
 
 
+@pytest.mark.parametrize("phase_aware", [False, True])
 @pytest.mark.parametrize("radius", [0.0, 0.05])
-def test_point_estimator_mean_is_the_integral(radius):
+def test_point_estimator_mean_is_the_integral(radius, phase_aware):
     """A ray light above a point of the floor: int Tr W sigma_s f_y f_x G dv."""
     x, wo = np.array([0.1, 0.0, 0.2]), unit((0.3, 1, 0.4))
     o, wl, length = np.array([-0.4, 0.3, 0.1]), unit((1.0, 0.05, 0.1)), 1.2
     values = _core.ray_light_point_estimates(
-        probe_scene(), x, wo, FLOOR, -1, o, wl, length, 0, radius, PAIR_SAMPLES, 5
+        probe_scene(), x, wo, FLOOR, -1, o, wl, length, 0, radius, phase_aware, PAIR_SAMPLES, 5
     )
 
     def integrand(v):
@@ -322,7 +382,7 @@ def test_point_estimator_mean_is_the_integral(radius):
 
     t_near = float((x - o) @ wl)
     expected = integrate.quad(integrand, 0, length, points=[t_near], limit=200, epsrel=1e-9)[0]
-    _check_mean(values[:, 0], expected, f"point r={radius}")
+    _check_mean(values[:, 0], expected, f"point r={radius} phase-aware {phase_aware}")
 
 
 # --------------------------------------------------------------------------- images

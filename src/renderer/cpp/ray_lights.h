@@ -57,9 +57,22 @@
 // the weight G_r (|x - y|^2 + r^2) Theta' / (h' p(v)) is then finite for every pair of lines, a y
 // on the camera line included. The radius shrinks as r_i = r_1 i^(alpha - 1) (radius_schedule.h with
 // d = 1); vbl.h states why the mean converges.
+//
+// Phase-aware sampling (an option, `phase_sampling`; Novak et al. 2012, sec. 4.3 fit the phase
+// functions' product over the equi-angular angle the same way). The equi-angular point is drawn
+// uniformly in its angle phi in [phi_0, phi_1] about the centre (y(v) for a camera segment, x for
+// a surface point); what the densities leave out is the angular factor g(phi): both phase
+// functions (camera segment) or the ray light's phase function times F_x (surface point), which
+// strongly forward-scattering media make peaked. With the option, phi is drawn from the
+// piecewise-linear density through g at 11 evenly spaced angles, plus a tenth of their mean (so
+// every angle keeps a density, whatever the fit misses):
+//   p(phi) = g~(phi) / int g~,   t = t_c + h tan(phi),   p(t) = p(phi) h / (h^2 + (t - t_c)^2),
+// and the equi-angular weight Theta / h becomes 1 / (p(phi) h). The ray light's v is drawn as
+// before.
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <vector>
 
@@ -172,6 +185,80 @@ inline double beam_geometry_factor(double z, double rho2, double r) {
     return std::log(R) / r2 * (d2 + r2);
 }
 
+// The phase-aware density of the equi-angular angle (above) on the line o + t d about `centre`:
+// `factor(w)` is g for the unit direction w from the centre to the line's point at angle phi.
+struct AngularDensity {
+    static constexpr int kNodes = 11;
+    double phi0 = 0, step = 0, total = 0;
+    std::array<double, kNodes> value{}, mass{};  // g~ at the nodes; mass of [phi_0, phi_k]
+};
+
+template <typename Factor>
+AngularDensity angular_density(const EquiAngular &e, const Vec3 &o, const Vec3 &d, const Vec3 &centre,
+                               Factor &&factor) {
+    constexpr int K = AngularDensity::kNodes;
+    AngularDensity a;
+    a.phi0 = std::atan(e.tan0);
+    a.step = e.range() / (K - 1);
+    Vec3 n = o + d * e.t_closest - centre;  // towards the line's nearest point
+    const double off = length(n);
+    n = off > 0 ? n / off : Frame(d).s;     // a centre on the line (softened beams): any normal
+    double sum = 0;
+    for (int k = 0; k < K; ++k) {
+        const double phi = a.phi0 + k * a.step;
+        a.value[size_t(k)] = std::max(0.0, factor(n * std::cos(phi) + d * std::sin(phi)));
+        sum += a.value[size_t(k)];
+    }
+    const double floor = sum > 0 && std::isfinite(sum) ? 0.1 * sum / K : 1.0;
+    for (int k = 0; k < K; ++k) {
+        double &g = a.value[size_t(k)];
+        g = std::isfinite(sum) ? g + floor : 1.0;
+        if (k > 0) a.mass[size_t(k)] = a.mass[size_t(k - 1)] + 0.5 * (a.value[size_t(k - 1)] + g) * a.step;
+    }
+    a.total = a.mass[K - 1];
+    return a;
+}
+
+// phi for a uniform xi, and its density p(phi).
+inline double angular_sample(const AngularDensity &a, double xi, double &pdf) {
+    constexpr int K = AngularDensity::kNodes;
+    const double target = xi * a.total;
+    int k = 0;
+    while (k < K - 2 && a.mass[size_t(k + 1)] < target) ++k;
+    const double g0 = a.value[size_t(k)], g1 = a.value[size_t(k + 1)];
+    const double in = std::max(0.0, (target - a.mass[size_t(k)]) / a.step);  // area within, per unit step
+    // the linear density g0 + (g1 - g0) s over s in [0, 1]: its integral to s is `in`
+    const double s = std::min(1.0, 2 * in / (g0 + std::sqrt(std::max(0.0, g0 * g0 + 2 * (g1 - g0) * in))));
+    pdf = (g0 + (g1 - g0) * s) / a.total;
+    return a.phi0 + (k + s) * a.step;
+}
+
+inline double angular_pdf(const AngularDensity &a, double phi) {
+    constexpr int K = AngularDensity::kNodes;
+    const double x = (phi - a.phi0) / a.step;
+    if (!(x >= 0 && x <= K - 1)) return 0.0;
+    const int k = std::min(int(x), K - 2);
+    const double s = x - k;
+    return (a.value[size_t(k)] + (a.value[size_t(k + 1)] - a.value[size_t(k)]) * s) / a.total;
+}
+
+// A point t on the equi-angular distribution e of the line (o, d) about `centre`, plainly or by
+// the phase-aware angle (factor: g), and 1 / (p(t) (|x(t) - centre|^2 + soften^2)): the weight
+// that cancels the (softened) inverse-square distance.
+template <typename Factor>
+double equiangular_point(const EquiAngular &e, const Vec3 &o, const Vec3 &d, const Vec3 &centre, bool phase_aware,
+                         double xi, Factor &&factor, double &weight) {
+    if (!phase_aware) {
+        weight = equiangular_weight(e);
+        return equiangular_sample(e, xi);
+    }
+    const AngularDensity a = angular_density(e, o, d, centre, factor);
+    double pdf_phi = 0;
+    const double phi = angular_sample(a, xi, pdf_phi);
+    weight = pdf_phi > 0 ? 1 / (pdf_phi * e.h) : 0.0;
+    return std::min(std::max(e.t_closest + e.h * std::tan(phi), e.t0), e.t1);
+}
+
 // One sample of a ray light's transport to a gather point, before visibility and the
 // connection's transmittance: `value` (camera throughput excluded), where on the ray light (y)
 // and, for a segment, on the camera ray (x), and w = (y - x) / |y - x|. Zero value: nothing.
@@ -182,11 +269,15 @@ struct RayLightSample {
 
 // To a surface point x (above).
 inline RayLightSample ray_light_to_point(const Scene &scene, const RayLight &l, const GatherPoint &x, double radius,
-                                        double min_distance2, Sampler &rng, MediumStats &ms) {
+                                        bool phase_aware, double min_distance2, Sampler &rng, MediumStats &ms) {
     RayLightSample s;
     const EquiAngular ea = equiangular(l.origin, l.dir, 0.0, l.length, x.pos, radius);
     if (!ea.valid) return s;
-    const double v = equiangular_sample(ea, rng.next());
+    const Medium &m = scene.media[size_t(l.medium)];
+    double angular = 0;
+    const double v = equiangular_point(ea, l.origin, l.dir, x.pos, phase_aware, rng.next(), [&](const Vec3 &w) {
+        return phase_eval(m.phase, -l.dir, -w) * mean(gather_scattering(scene, x, w));
+    }, angular);
     s.x = x.pos;
     s.y = l.origin + l.dir * v;
     const Vec3 d = s.y - s.x;
@@ -194,9 +285,8 @@ inline RayLightSample ray_light_to_point(const Scene &scene, const RayLight &l, 
     if (!(d2 > min_distance2)) return s;
     s.w = d / std::sqrt(d2);
     if (x.on_surface() && dot(scene.triangles[size_t(x.triangle)].n, s.w) <= 0) return s;
-    const Medium &m = scene.media[size_t(l.medium)];
     const double z = dot(d, l.dir);
-    const double geometry = beam_geometry_factor(z, std::max(0.0, d2 - z * z), radius) * equiangular_weight(ea);
+    const double geometry = beam_geometry_factor(z, std::max(0.0, d2 - z * z), radius) * angular;
     const RGB phase_y(phase_eval(m.phase, -l.dir, -s.w));
     s.value = l.power * ray_light_survival(m, l, v) * scattering_coefficient(m, s.y, ms) * phase_y *
               gather_scattering(scene, x, s.w) * geometry;
@@ -207,8 +297,8 @@ inline RayLightSample ray_light_to_point(const Scene &scene, const RayLight &l, 
 // transmittance from its origin `camera_tr` gives (above).
 template <typename CameraTr>
 RayLightSample ray_light_to_segment(const Scene &scene, const RayLight &l, const GatherPoint &camera, double length,
-                                    CameraTr &&camera_tr, double radius, double min_distance2, Sampler &rng,
-                                    MediumStats &ms) {
+                                    CameraTr &&camera_tr, double radius, bool phase_aware, double min_distance2,
+                                    Sampler &rng, MediumStats &ms) {
     RayLightSample s;
     const Vec3 c = camera.pos, wc = -camera.wo;
     const LineToLine pick = line_to_line(l.origin, l.dir, l.length, c, wc, std::sqrt(min_distance2), radius);
@@ -218,17 +308,19 @@ RayLightSample ray_light_to_segment(const Scene &scene, const RayLight &l, const
     s.y = l.origin + l.dir * v;
     const EquiAngular ea = equiangular(c, wc, 0.0, length, s.y, radius);
     if (!ea.valid || !(pdf_v > 0)) return s;
-    const double u = equiangular_sample(ea, rng.next());
+    const Medium &ml = scene.media[size_t(l.medium)];
+    const Medium &mc = scene.media[size_t(camera.medium)];
+    double angular = 0;  // w: from y towards the camera ray's point
+    const double u = equiangular_point(ea, c, wc, s.y, phase_aware, rng.next(), [&](const Vec3 &w) {
+        return phase_eval(ml.phase, -l.dir, w) * phase_eval(mc.phase, camera.wo, -w);
+    }, angular);
     s.x = c + wc * u;
     const Vec3 d = s.y - s.x;
     const double d2 = dot(d, d);
     if (!(d2 > min_distance2)) return s;
     s.w = d / std::sqrt(d2);
-    const Medium &ml = scene.media[size_t(l.medium)];
-    const Medium &mc = scene.media[size_t(camera.medium)];
     const double z = dot(d, l.dir);
-    const double geometry =
-        beam_geometry_factor(z, std::max(0.0, d2 - z * z), radius) * equiangular_weight(ea) / pdf_v;
+    const double geometry = beam_geometry_factor(z, std::max(0.0, d2 - z * z), radius) * angular / pdf_v;
     const GatherPoint at{s.x, camera.wo, -1, camera.medium};
     const RGB phase_y(phase_eval(ml.phase, -l.dir, -s.w));
     s.value = camera_tr(u) * scattering_coefficient(mc, s.x, ms) * gather_scattering(scene, at, s.w) * l.power *
@@ -243,6 +335,9 @@ public:
     // Beams of radius r_i = r_1 i^(alpha - 1) (vbl, vbl.h); none (rays: vrl) by default.
     void set_beam_radius(double initial, double alpha) { schedule_ = RadiusSchedule(initial, alpha, 1); }
     bool beams() const { return schedule_.initial > 0; }
+    // Phase-aware equi-angular angles (above).
+    void set_phase_sampling(bool on) { phase_aware_ = on; }
+    bool phase_sampling() const { return phase_aware_; }
     double radius(int64_t iteration) const { return beams() ? schedule_.radius(iteration) : 0.0; }
     const RadiusSchedule &schedule() const { return schedule_; }
 
@@ -267,9 +362,10 @@ public:
             auto camera_tr = [&](double u) {
                 return m.type == MediumType::Homogeneous ? beer_lambert(m.sigma_t, u) : c.track->at(u);
             };
-            s = ray_light_to_segment(scene, l, J.at, J.length, camera_tr, radius_, c.min_distance2, rng, ms);
+            s = ray_light_to_segment(scene, l, J.at, J.length, camera_tr, radius_, phase_aware_, c.min_distance2, rng,
+                                     ms);
         } else {
-            s = ray_light_to_point(scene, l, J.at, radius_, c.min_distance2, rng, ms);
+            s = ray_light_to_point(scene, l, J.at, radius_, phase_aware_, c.min_distance2, rng, ms);
         }
         const RGB value = J.weight * s.value * c.share;
         if (is_black(value) || !std::isfinite(value.x + value.y + value.z)) return;
@@ -289,6 +385,7 @@ public:
 private:
     RadiusSchedule schedule_;
     double radius_ = 0;
+    bool phase_aware_ = false;
     std::vector<RayLight> rays_;
 };
 
