@@ -52,14 +52,24 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     benchlib.add_common_options(parser, ["juice", "fog-perlin", "cbox-fog"])
     parser.set_defaults(size=64, threads=1)
-    parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
     parser.add_argument(
-        "--budgets", nargs="+", type=benchlib.seconds, default=[2, 4, 8, 16, 32, 64]
+        "--methods", nargs="+", default=list(METHODS), choices=METHODS, help="methods to run"
+    )
+    parser.add_argument(
+        "--budgets",
+        nargs="+",
+        type=benchlib.seconds,
+        default=[2, 4, 8, 16, 32, 64],
+        help="CPU seconds at which each run's image is measured",
     )
     parser.add_argument(
         "--seed", type=benchlib.at_least(0), default=1, help="the seed of every run"
     )
-    parser.add_argument("--reference-spp", type=benchlib.at_least(2), help="default: REFERENCE_SPP")
+    parser.add_argument(
+        "--reference-spp",
+        type=benchlib.at_least(2),
+        help="samples per pixel of every Mitsuba reference (default: per scene, REFERENCE_SPP)",
+    )
     args = parser.parse_args()
     benchlib.check_options(parser, args)
     budgets = sorted(args.budgets)

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 BENCH = Path(__file__).resolve().parent.parent / "bench"
-SCRIPTS = ("bench_pt", "bench_ppb", "bench_media", "bench_light_methods", "bench_vpl")
+SCRIPTS = ("bench_pt", "bench_ppb", "bench_media", "bench_light_methods", "bench_vpl", "bench_vrl")
 sys.path.insert(0, str(BENCH))
 
 import benchlib  # noqa: E402
@@ -52,6 +52,8 @@ def test_every_option_is_explained(script):
         ("bench_light_methods", ["--size", "0"], "expected an integer >= 1"),
         ("bench_vpl", ["--budgets", "1", "nan"], "expected a finite number of seconds > 0"),
         ("bench_vpl", ["--set", "clamp=none"], "expected method.KEY=VALUE"),
+        ("bench_vrl", ["--methods", "vrl-none"], "invalid choice: 'vrl-none'"),
+        ("bench_vrl", ["--budgets", "0"], "expected a finite number of seconds > 0"),
     ],
 )
 def test_a_bad_option_is_one_line_before_any_work(script, args, message):
