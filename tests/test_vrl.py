@@ -12,8 +12,9 @@
   a quadrature of the double (single) integral, with the tolerance from the samples' variance:
   skew, nearly parallel, parallel, nearly intersecting, short segments, and beams; crossing
   lines give finite values; the same with phase-aware sampling.
-- vrl and vbl agree with pt and Mitsuba on cbox-fog, with pt on scenes with a density grid, glass
-  and a directional light (image mean and 4x4 blocks, tolerances from the measured variance).
+- vrl and vbl agree with pt and Mitsuba on cbox-fog, with pt on scenes with density grids (and a
+  Mie phase function), glass, a directional light and on juice (image mean and 4x4 blocks,
+  tolerances from the measured variance).
 - vbl's radius follows its schedule and vbl tends to vrl as r -> 0. (Same image for any thread
   count and chunking, and every shipped scene rendering finite: tests/test_vpl.py, for every
   method of the gathering kernel.)
@@ -406,20 +407,32 @@ def test_agrees_with_pt_and_mitsuba_on_cbox_fog(cls):
     assert ok, f"against Mitsuba: {why}"
 
 
+# (scene, method, parameters): what these scenes and options add to cbox-fog
 VARIANTS = {
-    "smoke": "smoke",  # a density grid lit by point lights: ray lights cut to the grid's box
-    "cbox-glass": "cbox-glass",  # glass: camera paths go on past their gather points
-    "crepuscular": "crepuscular",  # a directional light, the camera inside fog
-    "juice": "juice",  # the paper's scene: a glass of a dense, scattering liquid
+    # a density grid lit by point lights: ray lights cut to the grid's box
+    "smoke": ("smoke", VirtualRayLights, {}),
+    # glass: camera paths go on past their gather points
+    "cbox-glass": ("cbox-glass", VirtualRayLights, {}),
+    # a directional light, the camera inside fog
+    "crepuscular": ("crepuscular", VirtualRayLights, {}),
+    # the paper's scene: a glass of a dense, scattering liquid
+    "juice": ("juice", VirtualRayLights, {}),
+    # a grid with a tabulated (Mie) phase function: beams with phase-aware sampling
+    "fog-perlin": (
+        "fog-perlin",
+        VirtualBeamLights,
+        {"beam_radius_relative": 0.01, "phase_sampling": True},
+    ),
 }
 
 
 @pytest.mark.parametrize("variant", VARIANTS)
-def test_vrl_agrees_with_pt_on_more_scenes(variant):
-    scene = load_small(VARIANTS[variant], RES, RES)
-    vrl = ours(VirtualRayLights, scene, 16, clamp="none", light_paths=64, spp_per_iteration=2)
+def test_agrees_with_pt_on_more_scenes(variant):
+    name, cls, params = VARIANTS[variant]
+    scene = load_small(name, RES, RES)
+    estimate = ours(cls, scene, 16, clamp="none", light_paths=64, spp_per_iteration=2, **params)
     pt = ours(PathTracing, scene, 16, seed=2, spp_per_wave=64)
-    ok, why = same_image(vrl, pt, alpha=1e-3, block=4)
+    ok, why = same_image(estimate, pt, alpha=1e-3, block=4)
     assert ok, f"{variant}: {why}"
 
 
