@@ -278,6 +278,7 @@ inline RayLightSample ray_light_to_point(const Scene &scene, const RayLight &l, 
     const double v = equiangular_point(ea, l.origin, l.dir, x.pos, phase_aware, rng.next(), [&](const Vec3 &w) {
         return phase_eval(m.phase, -l.dir, -w) * mean(gather_scattering(scene, x, w));
     }, angular);
+    if (!(v > 0 && v < l.length)) return s;  // an end (rounding): on a surface, measure zero
     s.x = x.pos;
     s.y = l.origin + l.dir * v;
     const Vec3 d = s.y - s.x;
@@ -305,6 +306,7 @@ RayLightSample ray_light_to_segment(const Scene &scene, const RayLight &l, const
     if (!pick.valid) return s;
     const double v = line_to_line_sample(pick, rng.next());
     const double pdf_v = line_to_line_pdf(pick, v);
+    if (!(v > 0 && v < l.length)) return s;  // an end (rounding): on a surface, measure zero
     s.y = l.origin + l.dir * v;
     const EquiAngular ea = equiangular(c, wc, 0.0, length, s.y, radius);
     if (!ea.valid || !(pdf_v > 0)) return s;
@@ -314,6 +316,7 @@ RayLightSample ray_light_to_segment(const Scene &scene, const RayLight &l, const
     const double u = equiangular_point(ea, c, wc, s.y, phase_aware, rng.next(), [&](const Vec3 &w) {
         return phase_eval(ml.phase, -l.dir, w) * phase_eval(mc.phase, camera.wo, -w);
     }, angular);
+    if (!(u > 0 && u < length)) return s;  // an end (rounding): on a surface, measure zero
     s.x = c + wc * u;
     const Vec3 d = s.y - s.x;
     const double d2 = dot(d, d);
