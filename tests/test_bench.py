@@ -20,6 +20,7 @@ SCRIPTS = (
     "bench_vpl",
     "bench_bdpt",
     "bench_roulette",
+    "bench_vrl",
 )
 sys.path.insert(0, str(BENCH))
 
@@ -63,6 +64,8 @@ def test_every_option_is_explained(script):
         ("bench_bdpt", ["--seconds", "0"], "expected a finite number of seconds > 0"),
         ("bench_roulette", ["--seeds", "0"], "expected an integer >= 1"),
         ("bench_roulette", ["--threads", "64"], "--threads 64 asked for"),
+        ("bench_vrl", ["--methods", "vrl-none"], "invalid choice: 'vrl-none'"),
+        ("bench_vrl", ["--budgets", "0"], "expected a finite number of seconds > 0"),
     ],
 )
 def test_a_bad_option_is_one_line_before_any_work(script, args, message):

@@ -212,12 +212,17 @@ def test_progressive_clamp_relaxes_on_schedule():
         assert method.method_stats()["consistent"] == (clamp != "fixed")
 
 
+# the methods of the gathering kernel (cpp/vpl.h; vrl and vbl: tests/test_vrl.py)
+GATHERING = ["vpl", "vsl", "vrl", "vbl"]
+
+
+@pytest.mark.parametrize("method_id", ["vpl", "vrl", "vbl"])
 @pytest.mark.parametrize("name", ["cbox-fog", "cbox-glass", "smoke"])
-def test_same_image_for_any_thread_count_and_chunking(name):
+def test_same_image_for_any_thread_count_and_chunking(name, method_id):
     scene = load_small(name, 8, 8)
     images = []
     for threads, chunk in ((1, 1 << 15), (2, 1 << 15), (2, 777)):
-        method = get_method("vpl")(scene, seed=5, threads=threads, params={"light_paths": 16})
+        method = get_method(method_id)(scene, seed=5, threads=threads, params={"light_paths": 16})
         method.gather.kernel.set_chunk_pairs(chunk)
         for i in range(2):
             method.run_iteration(i)
@@ -229,7 +234,7 @@ def test_same_image_for_any_thread_count_and_chunking(name):
 SHIPPED = sorted(p.parent.name for p in SCENES.glob("*/scene.yaml"))
 
 
-@pytest.mark.parametrize("method", ["vpl", "vsl"])
+@pytest.mark.parametrize("method", GATHERING)
 def test_every_shipped_scene_renders(method):
     assert len(SHIPPED) >= 11
     for name in SHIPPED:

@@ -345,7 +345,8 @@ def cmd_methods(args: argparse.Namespace) -> int:
     for mid in method_ids():
         print(f"{mid:<10} {describe(mid)}")
     # Workflow configs may name these already (exclude_methods, method_args, expected winners).
-    print(f"{PLANNED_PREFIX} {', '.join(NOT_YET_IMPLEMENTED)}")
+    if NOT_YET_IMPLEMENTED:
+        print(f"{PLANNED_PREFIX} {', '.join(NOT_YET_IMPLEMENTED)}")
     return 0
 
 

@@ -36,13 +36,16 @@ struct EquiAngular {
     double range() const { return angle; }
 };
 
-// The equi-angular distribution on [t0, t1] of the ray (o, d) about `centre`.
-inline EquiAngular equiangular(const Vec3 &o, const Vec3 &d, double t0, double t1, const Vec3 &centre) {
+// The equi-angular distribution on [t0, t1] of the ray (o, d) about `centre`. `soften` > 0 (vbl's
+// beams, ray_lights.h) draws as if the centre stood sqrt(h^2 + soften^2) off the line: the density
+// then follows 1 / (|x(t) - c|^2 + soften^2), and exists for a centre on the line too.
+inline EquiAngular equiangular(const Vec3 &o, const Vec3 &d, double t0, double t1, const Vec3 &centre,
+                               double soften = 0) {
     EquiAngular e;
     const Vec3 to_centre = centre - o;
     e.t_closest = dot(to_centre, d);
     const Vec3 off = to_centre - d * e.t_closest;
-    e.h = length(off);
+    e.h = soften > 0 ? std::sqrt(dot(off, off) + soften * soften) : length(off);
     e.t0 = t0;
     e.t1 = t1;
     if (!(e.h > 0) || !std::isfinite(e.h) || !(t1 > t0)) return e;

@@ -125,9 +125,27 @@ struct VirtualLightStats {
     uint64_t pairs = 0;   // job x light pairs
 };
 
-// The gathering kernel of vpl (Transfer = PointTransfer) and vsl (SphereTransfer, vsl.h).
-template <typename Transfer>
-class VirtualLightGathering : public SingleLane<VirtualLightGathering<Transfer>> {
+// Lights a gathering kernel joins beyond the virtual point lights: none for vpl and vsl; vrl and
+// vbl's ray lights (ray_lights.h), which replace the medium vertices' point lights. `begin` may
+// drop lights from the list (the exact ones stay first); `aim` is the kernel's aim for extra
+// light `index` (ExtraLightJob: what the kernel knows of the job).
+struct ExtraLightJob {
+    const GatherJob &job;
+    const TransmittanceTrack *track;  // a segment job's in a grid
+    double share;                     // the light's weight for sharing (S, or 1)
+    double min_distance2;             // joins closer than this are skipped
+    const DepthLimit &depth;
+};
+struct NoExtraLights {
+    void begin(const Scene &, const LightPaths &, std::vector<VirtualLight> &, int64_t) {}
+    int64_t size() const { return 0; }
+    void aim(const Scene &, const ExtraLightJob &, int64_t, Sampler &, ShadowRay &, MediumStats &) const {}
+};
+
+// The gathering kernel of vpl (Transfer = PointTransfer) and vsl (SphereTransfer, vsl.h), and with
+// Extra lights of vrl and vbl (ray_lights.h).
+template <typename Transfer, typename Extra = NoExtraLights>
+class VirtualLightGathering : public SingleLane<VirtualLightGathering<Transfer, Extra>> {
 public:
     VirtualLightGathering(std::shared_ptr<const Scene> scene, std::shared_ptr<const LightPaths> light_paths,
                           int max_depth, int rr_depth, uint64_t seed, int spp_per_iteration, int threads)
@@ -142,6 +160,8 @@ public:
 
     Transfer &transfer() { return transfer_; }
     const Transfer &transfer() const { return transfer_; }
+    Extra &extra() { return extra_; }
+    const Extra &extra() const { return extra_; }
     // c: the probability of drawing a segment's point by its free-flight density (above).
     void set_free_flight_fraction(double c) {
         if (!(c >= 0 && c <= 1)) throw std::invalid_argument("free_flight_fraction must lie in [0, 1]");
@@ -155,7 +175,7 @@ public:
     // Lights each gather job joins: the exact ones, then all the others or its sample's share
     // (the last shares may be one short).
     int64_t lights_per_job() const {
-        const int64_t shared = int64_t(lights_.size()) - exact_lights_;
+        const int64_t shared = int64_t(lights_.size()) - exact_lights_ + extra_.size();
         return exact_lights_ + (share_lights_ ? (shared + spp_ - 1) / spp_ : shared);
     }
     // Shadow-ray pairs per chunk of the connection stream (speed and memory only).
@@ -171,10 +191,11 @@ public:
             throw std::logic_error("virtual lights: the light paths of iteration " + std::to_string(iteration) +
                                    " come first");
         lights_ = collect_virtual_lights(*scene_, *light_paths_);
+        extra_.begin(*scene_, *light_paths_, lights_, iteration);
         exact_lights_ = 0;
         while (exact_lights_ < int64_t(lights_.size()) && lights_[size_t(exact_lights_)].exact()) ++exact_lights_;
         transfer_.begin(iteration);
-        stats_.lights += lights_.size();
+        stats_.lights += lights_.size() + uint64_t(extra_.size());
         jobs_.clear();
         tracks_.clear();
         stream_.start(0, 1);
@@ -258,6 +279,7 @@ private:
     int spp_, threads_;
     GatherWalk walk_;
     Transfer transfer_;
+    Extra extra_;
     double free_flight_fraction_ = 0;
     bool share_lights_ = true;
     int64_t exact_lights_ = 0;  // the first lights_ are the exact ones
@@ -274,8 +296,8 @@ private:
     MediumStats medium_stats_;
 };
 
-template <typename Transfer>
-void VirtualLightGathering<Transfer>::aim(int64_t job, int64_t k, ShadowRay &r, MediumStats &ms) const {
+template <typename Transfer, typename Extra>
+void VirtualLightGathering<Transfer, Extra>::aim(int64_t job, int64_t k, ShadowRay &r, MediumStats &ms) const {
     const Scene &scene = *scene_;
     const GatherJob &J = jobs_[size_t(job)];
     r.live = false;
@@ -284,11 +306,17 @@ void VirtualLightGathering<Transfer>::aim(int64_t job, int64_t k, ShadowRay &r, 
     const int64_t pixels = int64_t(film_.width) * film_.height;
     const bool shared = share_lights_ && k >= exact_lights_;
     const int64_t light = shared ? exact_lights_ + J.path / pixels + (k - exact_lights_) * spp_ : k;
-    if (light >= int64_t(lights_.size())) return;
-    const VirtualLight &Y = lights_[size_t(light)];
-    if (!depth_.allows(Y.depth + J.events)) return;
+    if (light >= int64_t(lights_.size()) + extra_.size()) return;
     const double share = shared ? double(spp_) : 1.0;
     Sampler rng = J.rng.split(uint64_t(light));
+    if (light >= int64_t(lights_.size())) {
+        const ExtraLightJob context{J, J.track >= 0 ? &tracks_[size_t(J.track)] : nullptr, share, min_distance2_,
+                                    depth_};
+        extra_.aim(scene, context, light - int64_t(lights_.size()), rng, r, ms);
+        return;
+    }
+    const VirtualLight &Y = lights_[size_t(light)];
+    if (!depth_.allows(Y.depth + J.events)) return;
     GatherPoint at = J.at;
     Vec3 w;
     RGB value;

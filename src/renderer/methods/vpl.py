@@ -49,6 +49,8 @@ class VirtualLightMethod(NativeMethod):
     """What vpl and vsl share: light paths, the gathering kernel, its counts."""
 
     kernel_class: type
+    # whether the light paths record their medium segments (vrl, vbl: the ray lights)
+    record_segments = False
     shared_parameters = frozenset(
         {"light_paths", "spp_per_iteration", "share_lights", "free_flight_fraction", "max_records"}
     )
@@ -75,7 +77,10 @@ class VirtualLightMethod(NativeMethod):
         max_records = p.integer("max_records", DEFAULT_MAX_RECORDS, lo=1)
         self.read_spread(p, self.native.core.scene_radius)
         self.light_paths = self.light_paths_wavefront(
-            self.light_paths_per_iteration, "light_paths", max_records, segments=False
+            self.light_paths_per_iteration,
+            "light_paths",
+            max_records,
+            segments=self.record_segments,
         )
         integrator = self.scene.integrator
         kernel = self.kernel_class(
