@@ -184,8 +184,6 @@ SOURCES: dict[str, Callable[[Scene, int | None], ReferenceSource]] = {
     "mitsuba": MitsubaSource,
     "pgi": PgiSource,
 }
-# How each source is named to a user ("Mitsuba's reference", "pgi's pt reference").
-SOURCE_LABELS = {"mitsuba": "Mitsuba", "pgi": "pgi's pt"}
 
 
 # --- accumulation ---------------------------------------------------------------------------
