@@ -22,10 +22,7 @@ machine does not inflate).
 from __future__ import annotations
 
 import argparse
-import math
 import time
-
-import numpy as np
 
 from benchlib import (
     add_common_options,
@@ -35,6 +32,7 @@ from benchlib import (
     scene_at,
     seconds,
 )
+from compare.convergence import fit_slope
 from compare.metrics import compare_images, reference_ok
 from renderer.errors import PgiError
 from renderer.methods import check_method_parameters, get_method
@@ -53,15 +51,6 @@ METHODS = {
 # Reference samples per pixel (both halves together): enough that its own error is well below
 # the methods' at the largest budget; the smoke grid is slow for Mitsuba's global majorant.
 REFERENCE_SPP = {"cbox": 8192, "cbox-fog": 16384, "crepuscular": 8192, "smoke": 2048}
-
-
-def fitted_slope(seconds: list[float], errors: list[float]) -> float:
-    """log-log least-squares slope over the positive errors (nan with fewer than two)."""
-    pairs = [(s, e) for s, e in zip(seconds, errors, strict=True) if e > 0 and s > 0]
-    if len(pairs) < 2:
-        return math.nan
-    x, y = np.log([s for s, _ in pairs]), np.log([e for _, e in pairs])
-    return float(np.polyfit(x, y, 1)[0])
 
 
 def main() -> None:
@@ -137,7 +126,7 @@ def main() -> None:
                 marks.append(" " if reference_ok(raw, own) else "*")
             values = " ".join(f"{e:9.3e}{m}" for e, m in zip(errors, marks, strict=True))
             print(
-                f"{name:<12} {label:<16} {values} {fitted_slope(times, errors):6.2f} "
+                f"{name:<12} {label:<16} {values} {fit_slope(times, errors).slope:6.2f} "
                 f"{first_iterations:6d}",
                 flush=True,
             )

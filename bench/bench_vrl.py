@@ -11,8 +11,8 @@ not by the wall clock, which the other work on a shared machine disturbs; Mitsub
 includes its own threads. Each run's image is taken at the first iteration end past each budget;
 relMSE (mean((x-r)^2/(r^2+0.01))) is measured against a Mitsuba reference of two independent
 halves (cached under bench/.cache/, as the other scripts'), less the reference's own relMSE
-(from the halves; a value within 10x of it is marked *). The slope is bench_vpl.py's log-log
-fit. Numbers are reported, never asserted.
+(from the halves; a value within 10x of it is marked *). The slope is the study's log-log fit
+(compare.convergence.fit_slope). Numbers are reported, never asserted.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ import argparse
 import time
 
 import benchlib
-from bench_vpl import fitted_slope
+from compare.convergence import fit_slope
 from compare.metrics import compare_images, reference_ok
 from renderer.methods import get_method
 
@@ -97,7 +97,7 @@ def main() -> None:
                 times.append(spent)
                 errors.append(raw - own)
                 cells.append(f"{raw - own:9.3e}{' ' if reference_ok(raw, own) else '*'}")
-            slope = fitted_slope(times, errors)
+            slope = fit_slope(times, errors).slope
             print(f"{name:<12} {label:<9} {' '.join(cells)} {slope:6.2f}", flush=True)
 
 
