@@ -5,7 +5,8 @@ Images are a smooth per-scene pattern plus Gaussian noise whose variance falls a
 like `pgi render --snapshots` (contracts.md). Methods: the ``FAKE_PGI_METHODS`` environment
 variable (comma separated), default "pt,lt,sppm". Mitsuba's references of the scenes named in
 ``FAKE_PGI_DEAD_SCENES`` (comma separated) are black, as Mitsuba's are in dense, white media;
-references by the ``pgi`` source are never.
+references by the ``pgi`` source are never; those pgi's pt renders of the scenes named in
+``FAKE_PGI_BIASED_PT_SCENES`` are 20 % too bright (bdpt's cross-check must find them).
 """
 
 from __future__ import annotations
@@ -72,6 +73,7 @@ def main(argv: list[str]) -> int:
     f.add_argument("--threads", type=int, default=1)
     f.add_argument("--set", action="append", default=[])
     f.add_argument("--source", default="mitsuba")
+    f.add_argument("--method", choices=("pt", "bdpt"))
     f.add_argument("--store")
     f.add_argument("--check", type=float, default=10.0)
     f.add_argument("-o", required=True)
@@ -93,16 +95,27 @@ def main(argv: list[str]) -> int:
     t = truth(scene)
     out = Path(a.o)
     if a.cmd == "reference":  # noise of variance (0.3 t)^2 / spp; no store is kept
-        rng = np.random.default_rng(a.seed + (7919 if a.source == "pgi" else 0))
+        method = a.method or "pt"
+        offset = {"mitsuba": 0, "pt": 7919, "bdpt": 104729}[
+            method if a.source == "pgi" else "mitsuba"
+        ]
+        rng = np.random.default_rng(a.seed + offset)
         sd = 0.3 / np.sqrt(a.spp) * t
         img = t + sd * rng.standard_normal(t.shape)
         dead = os.environ.get("FAKE_PGI_DEAD_SCENES", "").split(",")
         if a.source == "mitsuba" and scene in dead:
             img = np.zeros_like(img)
+        biased = os.environ.get("FAKE_PGI_BIASED_PT_SCENES", "").split(",")
+        if a.source == "pgi" and method == "pt" and scene in biased:
+            img = 1.2 * img
+        image_mean_var = [
+            float(v) for v in (sd * sd).reshape(-1, 3).sum(axis=0) / t[..., 0].size ** 2
+        ]
         side = {"method": "mitsuba-reference", "spp": a.spp, "seed": a.seed, "scene": scene,
                 "renderer": f"fake {a.source}", "source": a.source, "passes": 8,
                 "seconds_per_spp": 0.001, "render_seconds": 0.001 * a.spp,
-                "variance": f"{out.stem}.var.exr"}  # fmt: skip
+                "variance": f"{out.stem}.var.exr", "independent_pixels": method == "pt",
+                "image_mean_variance": image_mean_var}  # fmt: skip
         write(out, np.maximum(img, 0), side)
         write(out.with_name(f"{out.stem}.var.exr"), sd * sd, {})
         out.with_name(f"{out.stem}.var.json").unlink()  # a variance has no sidecar

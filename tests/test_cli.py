@@ -1252,6 +1252,46 @@ def test_passes_combine_as_one_mean_with_the_variance_of_their_spread(tmp_path):
     assert Accumulation.load(tmp_path / "store.npz", {"scene": "x"}, (3, 3)).spp == 0
 
 
+def test_image_mean_variance_comes_from_the_passes_image_means(tmp_path):
+    """Where a pass's pixels are correlated (bdpt's light paths splat across the image) the
+    variance of the image mean is not the pixels' summed: the accumulation estimates it from
+    the spread of the passes' image means. Passes whose pixels share one noise term: the
+    summed pixel variances underestimate the image mean's variance six-fold (six pixels), the
+    passes' image means get it right; it is stored and loaded with the rest."""
+    from renderer.reference import Accumulation
+
+    rng = np.random.default_rng(5)
+    sizes = [2, 2, 4, 8, 8, 1]
+    image_means, estimates, pixel_sums = [], [], []
+    for _ in range(400):
+        acc = Accumulation.empty(2, 3)
+        for n in sizes:  # one noise for every pixel of the pass: per-sample variance 1
+            acc.add(np.full((2, 3, 3), 1.0 + rng.standard_normal() / np.sqrt(n)), n, 0.1)
+        image_means.append(acc.mean.mean())
+        estimates.append(acc.image_mean_variance().mean())
+        pixel_sums.append(acc.variance_of_mean().reshape(-1, 3).sum(axis=0).mean() / 36)
+    spp = sum(sizes)
+    assert np.var(image_means) == pytest.approx(1 / spp, rel=0.15)
+    assert np.mean(estimates) == pytest.approx(1 / spp, rel=0.1)
+    assert np.mean(pixel_sums) == pytest.approx(1 / (6 * spp), rel=0.1)
+    acc.save(tmp_path / "store.npz")
+    back = Accumulation.load(tmp_path / "store.npz", {}, (2, 3))
+    np.testing.assert_array_equal(back.image_mean_variance(), acc.image_mean_variance())
+
+
+def test_a_pgi_reference_method_is_pt_or_bdpt_and_only_for_pgi(tmp_path):
+    """`pgi reference --method` picks which of pgi's unbiased methods renders a `--source pgi`
+    reference; Mitsuba has none, and a biased method is not offered."""
+    r = pgi("reference", "cbox", "--method", "bdpt", "--spp", "4", "-o", str(tmp_path / "a.exr"))
+    assert r.returncode == 2 and "only a reference of --source pgi has a method" in r.stderr
+    assert "Traceback" not in r.stderr and not (tmp_path / "a.exr").exists()
+    r = pgi(
+        "reference", "cbox", "--source", "pgi", "--method", "sppm", "--spp", "4",
+        "-o", str(tmp_path / "b.exr"),
+    )  # fmt: skip
+    assert r.returncode == 2 and "invalid choice: 'sppm'" in r.stderr
+
+
 def test_reference_store_is_extended_not_rendered_again(tmp_path):
     """`pgi reference --store`: 16 spp in 8 passes, then 40 from the same store renders the
     24 missing ones only (passes with seeds of their own, continuing the first 8) and the
@@ -1279,10 +1319,11 @@ def test_reference_store_is_extended_not_rendered_again(tmp_path):
     assert (new["spp"], new["spp_resumed"]) == (24, 0)
     again = reference(16, "d", "--seed", "0")  # and the store now holds seed 9's
     assert again["spp_resumed"] == 0
-    from renderer.cli import SOURCE_NAMES
-    from renderer.reference import SOURCES
+    from renderer.cli import PGI_REFERENCE_METHODS, SOURCE_NAMES
+    from renderer.reference import SOURCES, UNBIASED_METHODS
 
     assert set(SOURCE_NAMES) == set(SOURCES)  # `--source` offers what there is
+    assert PGI_REFERENCE_METHODS == UNBIASED_METHODS  # and `--method`
     reference(40, "e")
     fewer = reference(20, "f")
     assert (fewer["spp"], fewer["spp_resumed"], fewer["render_seconds"] < 0.5) == (40, 40, True)

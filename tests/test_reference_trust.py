@@ -1,8 +1,8 @@
 """Can the reference be trusted? The dense-media issue's case with the real renderers: in
 cbox-fog made dense and white (optical depth ~100 across the box, albedo 0.999, no depth
 limit) Mitsuba's volpath returns 0 in every pixel; the check against pgi's pt finds it, and
-the reference plan hands the scene to pgi's pt. The workflow's side (labels, tables, report)
-is in test_workflow.py, with a stand-in renderer."""
+the reference plan hands the scene to pgi's pt, whose reference bdpt cross-checks. The
+workflow's side (labels, tables, report) is in test_workflow.py, with a stand-in renderer."""
 
 from __future__ import annotations
 
@@ -11,11 +11,12 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from compare.runs import check_reference_files
 from compare.sizing import half_args, plan_from_files
-from renderer.imageio import read_exr
+from renderer.imageio import read_exr, read_json, write_exr, write_json
 
 DENSE = [
     "--set", "film.width=16", "--set", "film.height=16", "--set", "media.fog.sigma_t=50",
@@ -23,10 +24,16 @@ DENSE = [
 ]  # fmt: skip
 
 
-def reference(out: Path, source: str, spp: int, seed: int) -> None:
+SMALL = ["--set", "film.width=16", "--set", "film.height=16"]
+
+
+def reference(
+    out: Path, source: str, spp: int, seed: int, sets: list[str] = DENSE, method: str = "pt"
+) -> None:
     cmd = [sys.executable, "-m", "renderer.cli", "reference", "cbox-fog", "--source", source]
     cmd += ["--spp", str(spp), "--seed", str(seed), "--check", "0", "--threads", "2", "-q"]
-    r = subprocess.run([*cmd, *DENSE, "-o", str(out)], capture_output=True, text=True, timeout=600)
+    cmd += ["--method", method] if source == "pgi" else []
+    r = subprocess.run([*cmd, *sets, "-o", str(out)], capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr
 
 
@@ -76,3 +83,49 @@ def test_the_plan_hands_it_to_pt(dense: Path) -> None:
     assert plan["pilot_spp"] == 512
     assert "--source pgi" in half_args(plan, dense, 1)
     assert half_args(plan, dense, 1).endswith(f"{dense / 'store' / 'pgi-half1.npz'}")
+
+
+def test_bdpt_cross_checks_pts_reference_of_the_dense_medium(dense: Path) -> None:
+    """pt's check halves stand for the reference pt renders in Mitsuba's place; bdpt's two
+    halves (16 spp each, seeds of their own) agree with it: no false alarm where pixels of
+    bdpt's passes are correlated (its image mean's variance from its passes' image means)."""
+    for h in (0, 1):
+        reference(dense / f"cross{h}.exr", "pgi", 16, 2 + h, method="bdpt")
+        side = read_json(dense / f"cross{h}.json")
+        assert side["renderer"].endswith("bdpt") and side["independent_pixels"] is False
+    halves = [dense / f"check{h}.exr" for h in (0, 1)]
+    crosses = [dense / f"cross{h}.exr" for h in (0, 1)]
+    trust = check_reference_files(halves, crosses, "pgi's pt reference of cbox-fog", "bdpt")
+    assert trust["trustworthy"], trust
+    assert trust["checked_against"] == "pgi's bdpt"
+
+
+@pytest.fixture(scope="module")
+def fog(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """cbox-fog at 16x16 as shipped: pt's two halves (64 spp, seeds 0 and 1) and bdpt's two
+    cross-check halves (32 spp, seeds 2 and 3): the image mean's standard error is ~2.5 %."""
+    folder = tmp_path_factory.mktemp("fog")
+    for h in (0, 1):
+        reference(folder / f"pt{h}.exr", "pgi", 64, h, SMALL)
+        reference(folder / f"cross{h}.exr", "pgi", 32, 2 + h, SMALL, method="bdpt")
+    return folder
+
+
+@pytest.mark.parametrize("scale", [1.0, 1.3])
+def test_the_cross_check_catches_a_biased_pt(fog: Path, tmp_path: Path, scale: float) -> None:
+    """pt's reference passes bdpt's cross-check as rendered; made 30 % too bright (a bug pt's
+    estimator might have and bdpt's would not share) it fails it on its image mean, ~10
+    standard errors off."""
+    halves = []
+    for h in (0, 1):
+        image = read_exr(fog / f"pt{h}.exr").astype(np.float64) * scale
+        variance = read_exr(fog / f"pt{h}.var.exr").astype(np.float64) * scale**2
+        halves.append(tmp_path / f"pt{h}.exr")
+        write_exr(halves[-1], image)
+        write_exr(tmp_path / f"pt{h}.var.exr", variance)
+        write_json(tmp_path / f"pt{h}.json", read_json(fog / f"pt{h}.json"))
+    crosses = [fog / f"cross{h}.exr" for h in (0, 1)]
+    trust = check_reference_files(halves, crosses, "pgi's pt reference of cbox-fog", "bdpt")
+    assert trust["trustworthy"] == (scale == 1.0), trust
+    if scale != 1.0:
+        assert "above bdpt's" in trust["line"], trust["line"]

@@ -226,7 +226,7 @@ def _job_inputs(study: Path) -> list[tuple[str, str]]:
     env = {"FAKE_PGI_METHODS": "pt,lt,sppm"}
     args = ["--configfile", "cfg.yaml", "-n", "--forceall", "--printshellcmds"]
     out = snakemake(study, *args, "--verbose", env=env).stdout
-    jobs = re.findall(r"rule (\w+):\n(.*?)(?:\n\n|\Z)", out, re.S)
+    jobs = re.findall(r"(?:rule|checkpoint) (\w+):\n(.*?)(?:\n\n|\Z)", out, re.S)
     assert jobs
     return jobs
 
@@ -620,12 +620,13 @@ def test_a_new_method_resizes_the_reference_not_its_pilot(sized_study: Path) -> 
 
 @pytest.fixture(scope="module")
 def trust_study(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The fake study on four scenes whose references meet each case of the check against pgi's
+    """The fake study on five scenes whose references meet each case of the check against pgi's
     pt: `sound` (Mitsuba's passes), `dense` (Mitsuba's is black: pgi's pt takes over),
-    `dark` (black too, but its samples are fixed: nothing can take over) and `ours` (the
-    config asks for pgi's pt)."""
+    `dark` (black too, but its samples are fixed: nothing can take over), `ours` (the
+    config asks for pgi's pt) and `wrong` (the config asks for pgi's pt, which is 20 % too
+    bright there: bdpt's cross-check must find it). The methods include `mitsuba`."""
     wd = tmp_path_factory.mktemp("trust")
-    for s in ("sound", "dense", "dark", "ours"):
+    for s in ("sound", "dense", "dark", "ours", "wrong"):
         (wd / "scenes" / s).mkdir(parents=True)
         (wd / "scenes" / s / "scene.yaml").write_text(f"# fake scene {s}\n")
     scenes = [
@@ -633,12 +634,22 @@ def trust_study(tmp_path_factory: pytest.TempPathFactory) -> Path:
         "dense",
         {"name": "dark", "reference_spp": 64},
         {"name": "ours", "reference_source": "pgi"},
+        {"name": "wrong", "reference_source": "pgi"},
     ]
     reference = {"spp": "auto", "pilot_spp": 8, "check_spp": 8, "target": 0.5, "max_seconds": 1.0}
     write_config(
-        wd / "cfg.yaml", wd / "scenes", scenes=scenes, budgets=[0.5, 1], reference=reference
+        wd / "cfg.yaml",
+        wd / "scenes",
+        scenes=scenes,
+        methods=["pt", "lt", "mitsuba"],
+        budgets=[0.5, 1],
+        reference=reference,
     )
-    env = {"FAKE_PGI_METHODS": "pt,lt", "FAKE_PGI_DEAD_SCENES": "dense,dark"}
+    env = {
+        "FAKE_PGI_METHODS": "pt,lt,mitsuba",
+        "FAKE_PGI_DEAD_SCENES": "dense,dark",
+        "FAKE_PGI_BIASED_PT_SCENES": "wrong",
+    }
     snakemake(wd, "--configfile", "cfg.yaml", env=env)
     return wd
 
@@ -656,6 +667,11 @@ def test_a_sound_reference_passes_its_check_and_stays_mitsubas(trust_study: Path
     page = (trust_study / "reports" / "scene-sound.html").read_text()
     assert "Checked against pgi's pt (two halves of 8 spp)" in page
     assert "No trustworthy" not in page
+    # Mitsuba's reference needs no cross-check by bdpt; its `mitsuba` row is ranked
+    assert ref["crosscheck"] is None
+    assert not (trust_study / "results" / "reference" / "sound" / "crosscheck0.exr").exists()
+    runs = pd.read_csv(trust_study / "reports" / "tables" / "runs.csv")
+    assert runs[runs.scene == "sound"].renderer_trusted.all()
 
 
 def test_an_untrustworthy_mitsuba_reference_falls_back_to_pt(trust_study: Path) -> None:
@@ -671,16 +687,29 @@ def test_an_untrustworthy_mitsuba_reference_falls_back_to_pt(trust_study: Path) 
         assert side["source"] == "pgi" and side["spp"] == plan["spp"]
     ref = _reference_record(trust_study, "dense", "ref.json")
     assert ref["source"] == "pgi" and ref["source_label"] == "pgi's pt" and ref["trusted"]
+    # cross-checked by bdpt: two halves of seeds of their own
+    assert ref["crosscheck"]["trustworthy"] and ref["crosscheck"]["checked_against"] == "pgi's bdpt"
+    seeds = [_reference_record(trust_study, "dense", f"crosscheck{h}.json")["seed"] for h in (0, 1)]
+    halves = [_reference_record(trust_study, "dense", f"half{h}.json")["seed"] for h in (0, 1)]
+    assert not set(seeds) & set(halves)
     page = (trust_study / "reports" / "scene-dense.html").read_text()
     finding = html.escape(plan["trust"]["findings"][0])
     assert f"No trustworthy Mitsuba reference: {finding}" in page
     assert "reference rendered by pgi's pt" in page
+    assert "Cross-checked against pgi's bdpt (two halves of 8 spp)" in page
+    # Mitsuba's volpath failed the check here: the `mitsuba` method is not ranked
+    assert "method, the same volpath, is not ranked here" in page
     tables = trust_study / "reports" / "tables"
     runs = pd.read_csv(tables / "runs.csv")
     assert set(runs[runs.scene == "dense"].reference) == {"pgi's pt"}
     assert set(runs[runs.scene == "sound"].reference) == {"Mitsuba"}
     best = pd.read_csv(tables / "best.csv")
     assert set(best[best.scene == "dense"].reference) == {"pgi's pt"}
+    assert not runs[(runs.scene == "dense") & (runs.method == "mitsuba")].renderer_trusted.any()
+    assert runs[(runs.scene == "dense") & (runs.method != "mitsuba")].renderer_trusted.all()
+    assert "mitsuba" not in set(best[best.scene == "dense"].method)
+    ties = ",".join(best[best.scene == "dense"].tied_with.fillna(""))
+    assert "mitsuba" not in ties
     assert "dense (reference: pgi's pt)" in (tables / "overview.md").read_text()
 
 
@@ -709,3 +738,21 @@ def test_a_scene_may_ask_for_pts_reference(trust_study: Path) -> None:
     assert plan["source"] == "pgi" and not plan["fallback"] and plan["trust"] is None
     ref = _reference_record(trust_study, "ours", "ref.json")
     assert ref["source"] == "pgi" and ref["trusted"] and ref["trust"] is None
+    assert ref["crosscheck"]["trustworthy"]
+
+
+def test_a_pt_reference_that_bdpt_contradicts_ranks_nothing(trust_study: Path) -> None:
+    """pgi's pt reference 20 % too bright: bdpt's cross-check finds it on the image mean, the
+    scene is not ranked, and its page and the index say why."""
+    ref = _reference_record(trust_study, "wrong", "ref.json")
+    assert ref["source"] == "pgi" and not ref["trusted"]
+    line = ref["crosscheck"]["line"]
+    assert (
+        line.startswith("pgi's pt reference of wrong is not trustworthy: ")
+        and "above bdpt's" in line
+    )
+    assert ref["warnings"] == [line]
+    best = pd.read_csv(trust_study / "reports" / "tables" / "best.csv")
+    assert "wrong" not in set(best.scene) and "ours" in set(best.scene)
+    page = (trust_study / "reports" / "scene-wrong.html").read_text()
+    assert "Its cross-check against pgi's bdpt failed" in page

@@ -62,23 +62,33 @@ def half_estimates(halves: Sequence[str | Path]) -> list[Estimate]:
     """Two independent halves (a reference's, or a check's) as compare.trust estimates: each
     image with the variance of its mean and its passes (from its sidecar)."""
     images, variances = read_halves(halves)
-    passes = [int(read_json(sidecar_path(h)).get("passes") or 0) for h in halves]
-    return [
-        Estimate.from_passes(image, variances[i] if variances else None, passes[i])
-        for i, image in enumerate(images)
-    ]
+    sides = [read_json(sidecar_path(h)) for h in halves]
+    estimates = []
+    for i, (image, side) in enumerate(zip(images, sides, strict=True)):
+        # correlated pixels (bdpt's): the image mean's variance from the passes' image means
+        shared = None if side.get("independent_pixels", True) else side.get("image_mean_variance")
+        estimates.append(
+            Estimate.from_passes(
+                image, variances[i] if variances else None, int(side.get("passes") or 0), shared
+            )
+        )
+    return estimates
 
 
 def check_reference_files(
-    halves: Sequence[str | Path], checks: Sequence[str | Path], reference: str
+    halves: Sequence[str | Path],
+    checks: Sequence[str | Path],
+    reference: str,
+    checker: str = "pt",
 ) -> dict[str, Any]:
-    """Whether the reference made of ``halves`` can be trusted, judged against pgi's pt check
-    (its two halves ``checks``; compare.trust): the verdict as ref.json and plan.json keep it
-    (``reference`` names what is judged, e.g. "Mitsuba's reference of cbox-fog")."""
+    """Whether the reference made of ``halves`` can be trusted, judged against a check by
+    pgi's ``checker`` (its two halves ``checks``; compare.trust): the verdict as ref.json and
+    plan.json keep it (``reference`` names what is judged, e.g. "Mitsuba's reference of
+    cbox-fog"; pt checks Mitsuba's, bdpt cross-checks pt's)."""
     ref = half_estimates(halves)
     check = half_estimates(checks)
-    verdict = check_reference(combined(*ref), combined(*check), (ref[0], ref[1]), "pt")
-    record = verdict_record(verdict, reference, "pgi's pt")
+    verdict = check_reference(combined(*ref), combined(*check), (ref[0], ref[1]), checker)
+    record = verdict_record(verdict, reference, f"pgi's {checker}")
     sides = [read_json(sidecar_path(c)) for c in checks]
     record["check"] = {
         "spp_per_half": [s.get("spp") for s in sides],
@@ -94,12 +104,15 @@ def merge_reference(
     out_json: str | Path,
     plan_json: str | Path | None = None,
     checks: Sequence[str | Path] | None = None,
+    crosschecks: Sequence[str | Path] | None = None,
 ) -> dict[str, Any]:
     """Average two independent reference halves and record the reference's own error, how it
     was sized (``plan_json``, the reference-plan step's), what rendered it and whether it can
     be trusted: a Mitsuba reference is checked against pgi's pt (``checks``, the check's two
-    halves); one pgi's pt rendered carries the plan's verdict on Mitsuba's pilot, which sent
-    it there (it is not checked against the check: its first passes are the check's).
+    halves). One pgi's pt rendered carries the plan's verdict on Mitsuba's pilot, which sent
+    it there, and is cross-checked against pgi's bdpt (``crosschecks``, two halves): not
+    against pt's check, whose passes are its first ones, but against other estimators of the
+    same integral, which a bug of pt's would not share.
 
     See :func:`compare.metrics.reference_error` for why the reference error is a quarter of
     the half-vs-half error.
@@ -144,12 +157,33 @@ def merge_reference(
         scene = sides[0].get("scene") or Path(out_json).parent.name
         trust = check_reference_files([half_a, half_b], checks, f"Mitsuba's reference of {scene}")
     info["trust"] = trust
-    # Verdicts are drawn against this reference unless it is Mitsuba's and failed its check.
-    info["trusted"] = source != "mitsuba" or not trust or bool(trust["trustworthy"])
-    info["warnings"] = [trust["line"]] if trust and not trust["trustworthy"] else []
+    crosscheck = None
+    if source == "pgi" and crosschecks:
+        scene = sides[0].get("scene") or Path(out_json).parent.name
+        crosscheck = check_reference_files(
+            [half_a, half_b], crosschecks, f"pgi's pt reference of {scene}", "bdpt"
+        )
+    info["crosscheck"] = crosscheck
+    # Verdicts are drawn against this reference unless it is Mitsuba's and failed its check,
+    # or pt's and failed its cross-check.
+    failed = [
+        v
+        for v in (trust if source == "mitsuba" else None, crosscheck)
+        if v and not v["trustworthy"]
+    ]
+    info["trusted"] = not failed
+    info["warnings"] = [v["line"] for v in failed]
     write_exr(out_exr, ref, {"reference": info})
     write_json(out_json, info)
     return info
+
+
+def mitsuba_trusted(ref_info: dict[str, Any]) -> bool:
+    """Whether Mitsuba's volpath passed the check on this scene, or was not checked (a
+    reference's record, ref.json: its ``trust`` is the verdict on Mitsuba's reference or,
+    where pt took over, on Mitsuba's pilot)."""
+    trust = ref_info.get("trust")
+    return not trust or bool(trust.get("trustworthy", True))
 
 
 def compare_run(
@@ -213,6 +247,10 @@ def compare_run(
         # what rendered the reference, and whether verdicts may be drawn against it
         row["reference"] = str(ref_info.get("source_label") or "Mitsuba")
         row["reference_trusted"] = bool(ref_info.get("trusted", True))
+        # the `mitsuba` method is Mitsuba's volpath: where that failed the reference's check
+        # (and pt renders the reference), its renders are not ranked either: a black image
+        # scores well on relMSE where the reference is dim
+        row["renderer_trusted"] = method != "mitsuba" or mitsuba_trusted(ref_info)
         row.update(corrected)
         row["image"] = str(path)
         rows.append(row)

@@ -33,13 +33,14 @@ def _reference_args(a: argparse.Namespace) -> None:
 def _merge_reference(a: argparse.Namespace) -> None:
     from .runs import merge_reference
 
-    info = merge_reference(a.half_a, a.half_b, a.out_exr, a.out_json, a.plan, a.check)
+    info = merge_reference(a.half_a, a.half_b, a.out_exr, a.out_json, a.plan, a.check, a.crosscheck)
     print(
         f"reference: half-vs-half relMSE {info['halves_relmse']:.4g}, "
         f"estimated reference relMSE {info['ref_relmse']:.4g}"
     )
-    if info.get("trust"):
-        print(info["trust"]["line"])
+    for verdict in (info.get("trust"), info.get("crosscheck")):
+        if verdict:
+            print(verdict["line"])
 
 
 def _compare_run(a: argparse.Namespace) -> None:
@@ -119,6 +120,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--plan", help="the reference's plan (reference-plan), recorded with it")
     p.add_argument(
         "--check", nargs=2, help="the two halves of pgi's pt check (a Mitsuba reference is checked)"
+    )
+    p.add_argument(
+        "--crosscheck",
+        nargs=2,
+        help="the two halves of pgi's bdpt cross-check (a reference pgi's pt rendered is checked)",
     )
     p.set_defaults(fn=_merge_reference)
 

@@ -5,7 +5,9 @@ Tables (all written by :func:`write_tables` into one folder):
 - ``runs.csv``           one row per scene x method x seed x budget: metrics as measured,
                          sidecar stats, the reference's own error, what rendered it
                          (``reference``: Mitsuba, or pgi's pt where Mitsuba's failed its
-                         check) and whether it passed (``reference_trusted``); for the MSE-type
+                         check) and whether it passed (``reference_trusted``), and whether
+                         the cell's renderer passed it (``renderer_trusted``: False for the
+                         ``mitsuba`` method where Mitsuba's reference failed); for the MSE-type
                          metrics the error with the reference's own removed
                          (``<metric>_corrected``) and its uncertainties (``<metric>_u``, of
                          which ``<metric>_u_shared`` is shared by every image of the scene)
@@ -161,8 +163,10 @@ def summarize(runs: pd.DataFrame, determined_fraction: float = DETERMINED_FRACTI
     agg.columns = [f"{a}_{b}" for a, b in agg.columns]
     agg["n_seeds"] = g["seed"].nunique()
     agg["ref_relmse"] = g["ref_relmse"].first()
-    for column in ("reference", "reference_trusted"):  # what rendered the reference, and
-        if column in runs:  # whether verdicts may be drawn against it (compare.trust)
+    # what rendered the reference, whether verdicts may be drawn against it (compare.trust),
+    # and whether the cell's renderer failed that check (then it is not ranked)
+    for column in ("reference", "reference_trusted", "renderer_trusted"):
+        if column in runs:
             agg[column] = g[column].first()
     for m in (c[: -len("_corrected")] for c in corrected):
         total, shared = runs[f"{m}_u"], runs[f"{m}_u_shared"]
@@ -298,6 +302,8 @@ def best_methods(summary: pd.DataFrame, metric: str) -> pd.DataFrame:
     valid = ranked_cells(summary, metric)
     if "reference_trusted" in valid:  # no verdict against a reference that failed its check
         valid = valid[valid.reference_trusted.astype(bool)]
+    if "renderer_trusted" in valid:  # nor for a renderer that failed it (Mitsuba's volpath)
+        valid = valid[valid.renderer_trusted.astype(bool)]
     if "render_seconds_mean" in valid:
         in_time = [
             not over_budget(t, b)

@@ -68,15 +68,25 @@ class Estimate:
         )
 
     @classmethod
-    def from_passes(cls, mean: np.ndarray, variance: np.ndarray | None, passes: int) -> Estimate:
-        """From a reference's accumulated passes: its pixels independent (Mitsuba's independent
-        sampler and box filter), so the image mean's variance is the pixels' summed."""
+    def from_passes(
+        cls,
+        mean: np.ndarray,
+        variance: np.ndarray | None,
+        passes: int,
+        image_mean_variance: np.ndarray | None = None,
+    ) -> Estimate:
+        """From a reference's accumulated passes. Where its pixels are independent (Mitsuba's
+        independent sampler and box filter, pgi's pt) the image mean's variance is the
+        pixels' summed; where they are not (bdpt's light paths splat anywhere) it is given,
+        from the spread of the passes' image means (``image_mean_variance``)."""
         mean = np.asarray(mean, np.float64)
         if variance is None or passes < 2:
             return cls(mean)
         variance = np.asarray(variance, np.float64)
-        n = mean.shape[0] * mean.shape[1]
-        return cls(mean, variance, variance.reshape(-1, 3).sum(axis=0) / n**2, passes - 1)
+        if image_mean_variance is None:
+            n = mean.shape[0] * mean.shape[1]
+            image_mean_variance = variance.reshape(-1, 3).sum(axis=0) / n**2
+        return cls(mean, variance, np.asarray(image_mean_variance, np.float64), passes - 1)
 
 
 @dataclass

@@ -171,6 +171,9 @@ def cmd_reference(args: argparse.Namespace) -> int:
     overrides, _ = split_sets(args.set, "reference")
     _refuse_overwriting_the_scene(args.scene, [out, variance_path(out)], overrides)
     check_threads(args.threads)
+    if args.method is not None and args.source != "pgi":
+        raise PgiError(f"--method {args.method}: only a reference of --source pgi has a method")
+    method = args.method or "pt"
     if args.source == "mitsuba":  # Mitsuba reads neither our estimators nor our roulette
         check_overrides("mitsuba", overrides)
     scene = load_scene(args.scene, overrides)
@@ -195,9 +198,11 @@ def cmd_reference(args: argparse.Namespace) -> int:
         store=args.store,
         key=key,
         source=args.source,
+        method=method,
     )
     bar.update(info["render_seconds"], acc.spp - info["spp_resumed"], force=True)
     variance = acc.variance_of_mean()
+    image_mean_variance = acc.image_mean_variance()
     info = dict(
         info,
         scene=scene.name,
@@ -209,10 +214,12 @@ def cmd_reference(args: argparse.Namespace) -> int:
         seed=args.seed,
         overrides=overrides,
         variance=variance_path(out).name if variance is not None else None,
+        # the image mean's variance from the passes' image means (right for correlated pixels)
+        image_mean_variance=None if image_mean_variance is None else image_mean_variance.tolist(),
     )
     trust = None
-    if args.source == "mitsuba" and args.check > 0:
-        trust = _check_reference(scene, acc, args)
+    if args.check > 0 and (args.source == "mitsuba" or method == "pt"):
+        trust = _check_reference(scene, acc, args, info["independent_pixels"])
         info["trust"] = trust
     if variance is not None:
         write_exr(variance_path(out), variance, {"variance_of": out.name})
@@ -226,22 +233,38 @@ def cmd_reference(args: argparse.Namespace) -> int:
     return 0
 
 
-def _check_reference(scene: Any, acc: Any, args: argparse.Namespace) -> dict[str, Any]:
-    """Check a Mitsuba reference against ``args.check`` seconds of pgi's pt (seeds of its own):
-    compare.trust's verdict, as the sidecar keeps it (``trust``)."""
-    from compare.trust import Estimate, check_reference, verdict_record
+def _check_reference(
+    scene: Any, acc: Any, args: argparse.Namespace, independent_pixels: bool
+) -> dict[str, Any]:
+    """Check a reference against ``args.check`` seconds of another unbiased renderer (seeds of
+    its own): Mitsuba's against pgi's pt, pt's against pgi's bdpt (a cross-check by other
+    estimators). compare.trust's verdict, as the sidecar keeps it (``trust``)."""
+    from compare.trust import check_reference, verdict_record
 
     from .reference import render_check
 
-    check, check_info = render_check(scene, args.check, seed=args.seed, threads=args.threads)
-    verdict = check_reference(
-        Estimate.from_passes(acc.mean, acc.variance_of_mean(), acc.passes),
-        Estimate.from_passes(check.mean, check.variance_of_mean(), check.passes),
-        check_name="pt",
+    checker = "pt" if args.source == "mitsuba" else "bdpt"
+    check, check_info = render_check(
+        scene, args.check, seed=args.seed, threads=args.threads, method=checker
     )
-    record = verdict_record(verdict, f"Mitsuba's reference of {scene.name}", "pgi's pt")
+    verdict = check_reference(
+        _passes_estimate(acc, independent_pixels),
+        _passes_estimate(check, check_info["independent_pixels"]),
+        check_name=checker,
+    )
+    judged = "Mitsuba's reference" if args.source == "mitsuba" else "pgi's pt reference"
+    record = verdict_record(verdict, f"{judged} of {scene.name}", f"pgi's {checker}")
     record["check"] = {k: check_info[k] for k in ("renderer", "spp", "passes", "render_seconds")}
     return record
+
+
+def _passes_estimate(acc: Any, independent_pixels: bool) -> Any:
+    """A reference's accumulated passes as a compare.trust estimate: the image mean's variance
+    from its passes' image means where its pixels are correlated."""
+    from compare.trust import Estimate
+
+    shared = None if independent_pixels else acc.image_mean_variance()
+    return Estimate.from_passes(acc.mean, acc.variance_of_mean(), acc.passes, shared)
 
 
 def _recorded_reference_error(reference: Path, shape: tuple[int, ...]) -> dict[str, float]:
@@ -334,8 +357,10 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 
 PLANNED_PREFIX = "# not yet implemented:"
-# `pgi reference --source`: renderer.reference.SOURCES, named here without importing Mitsuba.
+# `pgi reference --source` and `--method`: renderer.reference.SOURCES and UNBIASED_METHODS,
+# named here without importing Mitsuba.
 SOURCE_NAMES = ("mitsuba", "pgi")
+PGI_REFERENCE_METHODS = ("pt", "bdpt")
 
 
 def cmd_methods(args: argparse.Namespace) -> int:
@@ -469,7 +494,12 @@ def build_parser() -> argparse.ArgumentParser:
         choices=sorted(SOURCE_NAMES),
         help="what renders the passes: mitsuba (default; volpath, one grey render per "
         "channel for chromatic media) or pgi (pgi's pt, for scenes where Mitsuba's reference "
-        "is not trustworthy)",
+        "is not trustworthy; --method bdpt for a cross-check of it)",
+    )
+    ref.add_argument(
+        "--method",
+        choices=PGI_REFERENCE_METHODS,
+        help="which of pgi's unbiased methods renders a --source pgi reference (default pt)",
     )
     ref.add_argument(
         "--store",
@@ -483,10 +513,11 @@ def build_parser() -> argparse.ArgumentParser:
         type=_non_negative_float,
         default=20.0,
         metavar="SECONDS",
-        help="check a Mitsuba reference against SECONDS of pgi's pt (seeds of its own; "
-        "default 20, about what dense, white media need; 0: no check): one line says whether "
-        "it is trustworthy (dead pixels where pt sees light, an image mean outside pt's "
-        "confidence interval) and the sidecar keeps the verdict under `trust`",
+        help="check a Mitsuba reference against SECONDS of pgi's pt, and one pgi's pt rendered "
+        "against SECONDS of pgi's bdpt (seeds of their own; default 20, about what dense, "
+        "white media need; 0: no check): one line says whether it is trustworthy (dead pixels "
+        "where the check sees light, an image mean outside its confidence interval) and the "
+        "sidecar keeps the verdict under `trust`",
     )
     ref.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     ref.set_defaults(func=cmd_reference)

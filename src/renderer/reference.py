@@ -10,10 +10,11 @@ rendered is thrown away. Passes hold at most 256 spp, which bounds memory in the
 (one lane per sample), and are averaged in float64. Nothing is replaced silently: a
 non-finite pixel value is an error.
 
-Where the passes come from is a *source* (:data:`SOURCES`): Mitsuba, or pgi's own path
-tracer (``pgi``: for scenes where Mitsuba's image cannot be trusted, and for the short check
-that finds them, :func:`render_check`). Both give passes of their own seeds, so the
-accumulation, the store and the reference's own error work alike for either.
+Where the passes come from is a *source* (:data:`SOURCES`): Mitsuba, or one of pgi's own
+unbiased methods (``pgi``: pt by default, for scenes where Mitsuba's image cannot be trusted
+and for the short check that finds them, :func:`render_check`; bdpt to cross-check a
+reference pt rendered). All give passes of their own seeds, so the accumulation, the store
+and the reference's own error work alike for any.
 """
 
 from __future__ import annotations
@@ -143,14 +144,24 @@ class MitsubaSource:
         return int(dr.thread_count())
 
 
+# pgi's methods a reference may be rendered by: the unbiased ones. pt's pixels are independent
+# (a camera path adds to its own pixel only); bdpt's are not (its light paths splat anywhere),
+# so its image mean's variance comes from its passes' image means, not from its pixels'.
+UNBIASED_METHODS = ("pt", "bdpt")
+
+
 class PgiSource:
-    """pgi's unbiased path tracer (``pt``): a pass is a pt render of ``spp`` samples per pixel
-    with a seed of its own. Its pixels are independent (a camera path adds to its own pixel
-    only), as a reference's variance estimate assumes."""
+    """One of pgi's unbiased methods (:data:`UNBIASED_METHODS`, ``pt`` by default): a pass is
+    a render of ``spp`` samples per pixel with a seed of its own."""
 
-    method = "pt"
-
-    def __init__(self, scene: Scene, threads: int | None = None) -> None:
+    def __init__(self, scene: Scene, threads: int | None = None, method: str = "pt") -> None:
+        if method not in UNBIASED_METHODS:
+            raise PgiError(
+                f"reference: pgi renders references by {' or '.join(UNBIASED_METHODS)} only "
+                f"(unbiased), not {method!r}"
+            )
+        self.method = method
+        self.independent_pixels = method == "pt"
         # imported here: Mitsuba references do not depend on the renderer's own methods
         # (`pgi fingerprint`'s reference digest lists the modules `pgi reference` loads)
         from renderer import __version__
@@ -173,14 +184,16 @@ class PgiSource:
             method.run_iteration(method.iterations)
         stats = method.stats()
         if stats["nonfinite"]:  # dropped samples would bias the reference
-            raise PgiError(f"{self.scene.path}: pt dropped {stats['nonfinite']} non-finite samples")
+            raise PgiError(
+                f"{self.scene.path}: {self.method} dropped {stats['nonfinite']} non-finite samples"
+            )
         return np.asarray(method.image(), dtype=np.float64)
 
     def threads(self) -> int:
         return self.thread_count
 
 
-SOURCES: dict[str, Callable[[Scene, int | None], ReferenceSource]] = {
+SOURCES: dict[str, Callable[..., ReferenceSource]] = {
     "mitsuba": MitsubaSource,
     "pgi": PgiSource,
 }
@@ -193,10 +206,13 @@ SOURCES: dict[str, Callable[[Scene, int | None], ReferenceSource]] = {
 class Accumulation:
     """Passes of one reference image: their sample-weighted mean, the weighted sum of squared
     deviations of the passes from it (``m2``, per value; combined by Chan et al.'s update),
-    and what made them (``key``: a store is extended only by passes of the same kind)."""
+    the same of the passes' image means per channel (``image_mean_m2``: the image mean's
+    variance where pixels are correlated), and what made them (``key``: a store is extended
+    only by passes of the same kind)."""
 
     mean: np.ndarray
     m2: np.ndarray
+    image_mean_m2: np.ndarray = field(default_factory=lambda: np.zeros(3))
     spp: int = 0
     passes: int = 0
     key: dict[str, Any] = field(default_factory=dict)
@@ -206,15 +222,17 @@ class Accumulation:
     @classmethod
     def empty(cls, height: int, width: int, key: dict[str, Any] | None = None) -> Accumulation:
         zeros = np.zeros((height, width, 3))
-        return cls(zeros, zeros.copy(), key=dict(key or {}))
+        return cls(zeros, zeros.copy(), np.zeros(3), key=dict(key or {}))
 
     def add(self, image: np.ndarray, spp: int, seconds: float, first: bool = False) -> None:
         """One pass of ``spp`` samples per pixel. With per-sample variance s^2 a pass has
         variance s^2 / spp, and E[m2] = (passes - 1) s^2."""
         total = self.spp + spp
         delta = image - self.mean
+        delta_image_mean = delta.reshape(-1, 3).mean(axis=0)
         self.mean = self.mean + delta * (spp / total)
         self.m2 = self.m2 + delta * delta * (self.spp * spp / total)
+        self.image_mean_m2 = self.image_mean_m2 + delta_image_mean**2 * (self.spp * spp / total)
         self.spp, self.passes = total, self.passes + 1
         self.pass_log.append((int(spp), float(seconds), bool(first)))
 
@@ -224,6 +242,13 @@ class Accumulation:
         if self.passes < 2:
             return None
         return self.m2 / ((self.passes - 1) * self.spp)
+
+    def image_mean_variance(self) -> np.ndarray | None:
+        """The variance of the image mean per channel from the spread of the passes' image
+        means: right whether or not the pixels are correlated (None below two passes)."""
+        if self.passes < 2:
+            return None
+        return self.image_mean_m2 / ((self.passes - 1) * self.spp)
 
     def seconds_per_spp(self) -> float:
         """Render seconds per sample per pixel, leaving out each process's first pass (it
@@ -244,7 +269,13 @@ class Accumulation:
         meta = {"spp": self.spp, "passes": self.passes, "key": self.key, "log": self.pass_log}
         tmp = path.with_name(f".{path.name}.tmp{os.getpid()}.npz")
         try:
-            np.savez(tmp, mean=self.mean, m2=self.m2, meta=np.array(json.dumps(meta)))
+            np.savez(
+                tmp,
+                mean=self.mean,
+                m2=self.m2,
+                image_mean_m2=self.image_mean_m2,
+                meta=np.array(json.dumps(meta)),
+            )
             tmp.replace(path)
         finally:
             tmp.unlink(missing_ok=True)
@@ -260,6 +291,7 @@ class Accumulation:
                 stored = cls(
                     data["mean"].astype(np.float64),
                     data["m2"].astype(np.float64),
+                    data["image_mean_m2"].astype(np.float64),
                     int(meta["spp"]),
                     int(meta["passes"]),
                     meta["key"],
@@ -286,6 +318,7 @@ def render_reference_passes(
     store: str | Path | None = None,
     key: dict[str, Any] | None = None,
     source: str = "mitsuba",
+    method: str = "pt",
 ) -> tuple[Accumulation, dict[str, Any]]:
     """Render ``scene`` to at least ``spp`` samples per pixel, in passes of their own seeds.
 
@@ -295,7 +328,8 @@ def render_reference_passes(
     all it holds. ``min_passes``: the passes rendered now number at least this many (one
     sample each at most). ``on_pass(seconds, spp_done)`` follows the passes. Returns the
     accumulation and an info dict (renderer, variant, passes, load and render seconds,
-    threads; spp taken from the store).
+    threads; spp taken from the store). ``method``: which of pgi's unbiased methods renders
+    the ``pgi`` source's passes.
     """
     if spp < 1:
         raise PgiError(f"reference: spp must be >= 1, got {spp}")
@@ -304,6 +338,8 @@ def render_reference_passes(
     check_reference_fits_in_memory(scene, spp)  # before the renderer's start-up
     shape = (scene.film.height, scene.film.width)
     full_key = {"source": source, "seed": int(seed), **(key or {})}
+    if source == "pgi":
+        full_key["method"] = method
     acc = Accumulation.empty(*shape, full_key)
     if store is not None and Path(store).is_file():
         acc = Accumulation.load(store, full_key, shape)
@@ -313,7 +349,7 @@ def render_reference_passes(
     renderer: ReferenceSource | None = None
     identity = acc.key.get("identity", {})
     if sizes:  # start the renderer only when there is something to render
-        renderer = SOURCES[source](scene, threads)
+        renderer = make_source(source, scene, threads, method)
         identity = renderer.identity()
         if acc.passes and acc.key.get("identity") != identity:  # another version or variant
             acc = Accumulation.empty(*shape, full_key)
@@ -343,21 +379,35 @@ def render_reference_passes(
         "seconds_per_spp": acc.seconds_per_spp(),
         "threads": renderer.threads() if renderer else threads,
         "nonfinite": 0,
+        **pixel_correlation(source, method),
     }
     return acc, info
 
 
+def make_source(source: str, scene: Scene, threads: int | None, method: str) -> ReferenceSource:
+    if source == "pgi":
+        return PgiSource(scene, threads, method)
+    return SOURCES[source](scene, threads)
+
+
+def pixel_correlation(source: str, method: str) -> dict[str, bool]:
+    """Whether a source's pixels are independent (Mitsuba's and pt's are; bdpt's light paths
+    splat across the image), as the sidecar states it for the variance of the image mean."""
+    return {"independent_pixels": source != "pgi" or method == "pt"}
+
+
 def render_check(
-    scene: Scene, seconds: float, seed: int = 0, threads: int | None = None
+    scene: Scene, seconds: float, seed: int = 0, threads: int | None = None, method: str = "pt"
 ) -> tuple[Accumulation, dict[str, Any]]:
-    """A short render by the ``pgi`` source to check a reference against: passes for about
+    """A short render by the ``pgi`` source (``method``: pt, or bdpt to cross-check a reference
+    pt rendered) to check a reference against: passes for about
     ``seconds`` of render time and at least MIN_PASSES_FOR_VARIANCE of them (their spread
     gives the check's variance), seeded apart from any reference's passes. Passes start at
     1 spp and double while one takes under 1/CHECK_PASSES of ``seconds``: about that many
     passes give the check's variance its degrees of freedom (a t-score from a few is worth
     far less), and passes not much smaller keep the threads busy (a pass lasts as long as
     its longest path: long in dense media)."""
-    source = PgiSource(scene, threads)
+    source = PgiSource(scene, threads, method)
     acc = Accumulation.empty(scene.film.height, scene.film.width, {"source": "pgi"})
     spp, start = 1, time.perf_counter()
     while acc.passes < MIN_PASSES_FOR_VARIANCE or time.perf_counter() - start < seconds:
@@ -374,6 +424,7 @@ def render_check(
         "passes": acc.passes,
         "render_seconds": acc.render_seconds(),
         "seed": seed,
+        **pixel_correlation("pgi", method),
     }
     return acc, info
 

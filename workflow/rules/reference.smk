@@ -12,7 +12,11 @@
 # Every reference is checked against pgi's pt (`reference_check`: two halves of
 # reference.check_spp, compare.trust). The plan checks a sized Mitsuba reference's pilot and,
 # where it is not trustworthy, names pgi's pt as the source of the halves, the check's halves
-# as their pilot (their stores are extended); the merge checks the finished reference.
+# as their pilot (their stores are extended); the merge checks the finished reference. A
+# reference pt renders (the plan's fallback, or `reference_source: pgi`) is cross-checked
+# against pgi's bdpt (`reference_crosscheck`, two halves of reference.check_spp and seeds of
+# their own): other estimators of the same integral, which a bug of pt's would not share. The
+# plan is a checkpoint because only it knows whether pt renders the reference.
 
 import json
 
@@ -38,6 +42,10 @@ def mitsuba_pilot(scene):
 
 def check_images(scene):
     return [f"{reference_folder(scene)}/check{h}.exr" for h in (0, 1)]
+
+
+def crosscheck_images(scene):
+    return [f"{reference_folder(scene)}/crosscheck{h}.exr" for h in (0, 1)]
 
 
 rule reference_pilot:
@@ -86,8 +94,33 @@ rule reference_check:
         f"{R}/benchmarks/reference/{{scene}}/check{{half}}.tsv"
     shell:
         "{PGI} reference {params.scene:q} --spp {params.spp} --seed {params.seed}"
-        " --source pgi --threads {threads} {params.sets}"
+        " --source pgi --check 0 --threads {threads} {params.sets}"
         " --store {params.store:q} -o {output.exr:q} > {log:q} 2>&1"
+
+
+rule reference_crosscheck:
+    """pgi's bdpt in two halves of their own seeds: what a reference pgi's pt rendered is
+    cross-checked against."""
+    output:
+        exr=f"{R}/reference/{{scene}}/crosscheck{{half}}.exr",
+        json=f"{R}/reference/{{scene}}/crosscheck{{half}}.json",
+    params:
+        scene=scene_arg,
+        sets=set_args,
+        spp=PLAN.ref_check_spp,
+        # apart from the seeds of the check, the pilot and the halves (ref_seed + 0, 1)
+        seed=lambda w: PLAN.ref_seed + 2 + int(w.half),
+        code=PLAN.code.get("render", ""),
+        scene_digest=scene_digest,
+    threads: PLAN.ref_threads
+    log:
+        f"{R}/logs/reference/{{scene}}/crosscheck{{half}}.log",
+    benchmark:
+        f"{R}/benchmarks/reference/{{scene}}/crosscheck{{half}}.tsv"
+    shell:
+        "{PGI} reference {params.scene:q} --spp {params.spp} --seed {params.seed}"
+        " --source pgi --method bdpt --check 0 --threads {threads} {params.sets}"
+        " -o {output.exr:q} > {log:q} 2>&1"
 
 
 def plan_inputs(wildcards):
@@ -131,7 +164,7 @@ def plan_spec(wildcards):
     return json.dumps(spec, sort_keys=True)
 
 
-rule reference_plan:
+checkpoint reference_plan:
     input:
         unpack(plan_inputs),
     output:
@@ -177,17 +210,33 @@ rule reference_half:
         " --threads {threads} {params.sets} -o {output.exr:q} > {log:q} 2>&1"
 
 
+def crosscheck_inputs(wildcards):
+    """bdpt's cross-check where the plan has pgi's pt render the reference; none else."""
+    plan_file = checkpoints.reference_plan.get(scene=wildcards.scene).output[0]
+    with open(plan_file) as f:
+        return crosscheck_images(wildcards.scene) if json.load(f).get("source") == "pgi" else []
+
+
+def crosscheck_args(wildcards, input):
+    # (before the plan exists, Snakemake stands the plan in for the cross-check's images)
+    images = [str(c) for c in input.crosscheck if os.path.basename(c).startswith("crosscheck")]
+    return "--crosscheck " + " ".join(shlex.quote(c) for c in images) if images else ""
+
+
 rule reference:
     input:
         a=f"{R}/reference/{{scene}}/half0.exr",
         b=f"{R}/reference/{{scene}}/half1.exr",
         plan=f"{R}/reference/{{scene}}/plan.json",
         check=lambda w: check_images(w.scene),
+        crosscheck=crosscheck_inputs,
         # the reference's own error (ref.json) is computed by the analysis code
         code=MERGE_CODE,
     output:
         exr=f"{R}/reference/{{scene}}/ref.exr",
         json=f"{R}/reference/{{scene}}/ref.json",
+    params:
+        crosscheck=crosscheck_args,
     log:
         f"{R}/logs/reference/{{scene}}/merge.log",
     benchmark:
@@ -195,4 +244,4 @@ rule reference:
     shell:
         "{PY} -m compare.steps merge-reference {input.a:q} {input.b:q}"
         " {output.exr:q} {output.json:q} --plan {input.plan:q} --check {input.check:q}"
-        " > {log:q} 2>&1"
+        " {params.crosscheck} > {log:q} 2>&1"

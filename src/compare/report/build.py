@@ -233,20 +233,21 @@ def _sizing_sentence(ref: dict[str, Any]) -> str:
 
 
 def _trust_sentence(ref: dict[str, Any]) -> str:
-    """Whether the reference can be trusted (its check against pgi's pt, compare.trust) and,
-    where Mitsuba's could not, what rendered it instead; in HTML."""
+    """Whether the reference can be trusted (a Mitsuba one's check against pgi's pt, a pt one's
+    cross-check against pgi's bdpt; compare.trust) and, where Mitsuba's could not, what
+    rendered it instead; in HTML."""
     trust, source = ref.get("trust") or {}, ref.get("source", "mitsuba")
     findings = "; ".join(str(f) for f in trust.get("findings") or ())
-    if source == "pgi" and trust and not trust.get("trustworthy", True):
-        return (
-            f'<p><span class="flag">⚠ No trustworthy Mitsuba reference: {e(findings)}; '
-            "reference rendered by pgi's pt</span> (in two independent halves of their own "
-            "seeds, its own error estimated and removed as Mitsuba's would be; a Mitsuba pilot "
-            "failed the check, so the reference is unbiased by pt's construction, not "
-            "confirmed by a second renderer).</p>"
-        )
     if source == "pgi":
-        return "<p>Reference rendered by pgi's pt, as the config asks (reference_source).</p>"
+        why = (
+            f'<span class="flag">⚠ No trustworthy Mitsuba reference: {e(findings)}; '
+            "reference rendered by pgi's pt</span> (in two independent halves of their own "
+            "seeds, its own error estimated and removed as Mitsuba's would be); the "
+            "<code>mitsuba</code> method, the same volpath, is not ranked here. "
+            if trust and not trust.get("trustworthy", True)
+            else "Reference rendered by pgi's pt, as the config asks (reference_source). "
+        )
+        return f"<p>{why}{_crosscheck_sentence(ref.get('crosscheck') or {})}</p>"
     if trust and not trust.get("trustworthy", True):
         return (
             f'<p><span class="flag">⚠ No trustworthy Mitsuba reference: {e(findings)}.</span> '
@@ -254,13 +255,33 @@ def _trust_sentence(ref: dict[str, Any]) -> str:
             "pgi</code> to have pgi's pt render it).</p>"
         )
     if trust:
-        spp = (trust.get("check") or {}).get("spp_per_half") or []
-        of = f" (two halves of {e(str(spp[0]))} spp)" if spp and spp[0] else ""
         return (
-            f"<p>Checked against pgi's pt{of}: no dead pixels where pt sees light, its image "
-            "mean within pt's confidence interval, its halves agreeing within their noise.</p>"
+            f"<p>Checked against pgi's pt{_check_size(trust)}: no dead pixels where pt sees "
+            "light, its image mean within pt's confidence interval, its halves agreeing within "
+            "their noise.</p>"
         )
     return ""
+
+
+def _check_size(verdict: dict[str, Any]) -> str:
+    spp = (verdict.get("check") or {}).get("spp_per_half") or []
+    return f" (two halves of {e(str(spp[0]))} spp)" if spp and spp[0] else ""
+
+
+def _crosscheck_sentence(crosscheck: dict[str, Any]) -> str:
+    """pt's reference against pgi's bdpt: other estimators of the same integral."""
+    if not crosscheck:
+        return "It is not cross-checked: unbiased by pt's construction, not confirmed."
+    if crosscheck.get("trustworthy"):
+        return (
+            f"Cross-checked against pgi's bdpt{_check_size(crosscheck)}: its image mean within "
+            "bdpt's confidence interval, no dead pixels where bdpt sees light."
+        )
+    findings = "; ".join(str(f) for f in crosscheck.get("findings") or ())
+    return (
+        f'<span class="flag">⚠ Its cross-check against pgi\'s bdpt failed: {e(findings)}.'
+        "</span> Methods are not ranked against it."
+    )
 
 
 def _reference_paragraph(ref: dict[str, Any]) -> str:
@@ -286,14 +307,23 @@ def _reference_paragraph(ref: dict[str, Any]) -> str:
 
 
 def _trust_word(ref: dict[str, Any]) -> str:
-    """The index's word for a reference's check: "yes", "no: Mitsuba's failed, pt's used",
-    "no" (not ranked), or "–" (not checked)."""
+    """The index's word for a reference's check: "yes", "Mitsuba's: no (pt's used)" (with
+    whether bdpt's cross-check agrees), "no (not ranked)", or "–" (not checked)."""
     trust = ref.get("trust") or {}
+    crosscheck = ref.get("crosscheck") or {}
+    if ref.get("source") == "pgi":
+        cross = (
+            ""
+            if not crosscheck
+            else ", bdpt agrees"
+            if crosscheck.get("trustworthy")
+            else ", bdpt disagrees (not ranked)"
+        )
+        mitsuba = "Mitsuba's: no (pt's used)" if trust and not trust.get("trustworthy") else "pt's"
+        return mitsuba + cross if trust or crosscheck else "–"
     if not trust:
         return "–"
-    if trust.get("trustworthy"):
-        return "yes"
-    return "Mitsuba's: no (pt's used)" if ref.get("source") == "pgi" else "no (not ranked)"
+    return "yes" if trust.get("trustworthy") else "no (not ranked)"
 
 
 def _reference_row(scene: str, ref: dict[str, Any], cells: pd.DataFrame) -> dict[str, Any]:
