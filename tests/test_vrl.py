@@ -15,6 +15,9 @@
 - vrl and vbl agree with pt and Mitsuba on cbox-fog, with pt on scenes with density grids (and a
   Mie phase function), glass, a directional light and on juice (image mean and 4x4 blocks,
   tolerances from the measured variance).
+- The multiple scattering alone (vrl at min_depth 3: its ray lights, on cbox-fog with black
+  walls) agrees with Mitsuba unbounded less Mitsuba at max_depth 2, and not with the subtraction
+  one event off.
 - vbl's radius follows its schedule and vbl tends to vrl as r -> 0. (Same image for any thread
   count and chunking, and every shipped scene rendering finite: tests/test_vpl.py, for every
   method of the gathering kernel.)
@@ -30,7 +33,7 @@ from scipy import integrate
 
 import stats
 from conftest import load_small
-from parity import mitsuba, ours, same_image
+from parity import Estimate, assert_block_check_has_power, mitsuba, ours, same_image
 from renderer import _core
 from renderer.methods import get_method
 from renderer.methods.pt import PathTracing
@@ -434,6 +437,57 @@ def test_agrees_with_pt_on_more_scenes(variant):
     pt = ours(PathTracing, scene, 16, seed=2, spp_per_wave=64)
     ok, why = same_image(estimate, pt, alpha=1e-3, block=4)
     assert ok, f"{variant}: {why}"
+
+
+# --------------------------------------------------------------------------- multiple scattering
+
+# cbox-fog with black walls: a path of two or more scattering events brings light only if its
+# first two vertices from the camera, x and y, are in the fog, and then vrl makes it by joining
+# the camera segment through x to the ray light through y. So there the multiple scattering is
+# the ray lights' part of the image alone, which min_depth 3 keeps (Mitsuba's count of
+# vertices: paths of two events or more; the light's own point lights, single scattering, and
+# the emission seen directly are left out).
+BLACK_WALLS = tuple(f"materials.{m}.reflectance=0" for m in ("white", "red", "green"))
+MS_RES = 16
+
+
+def black_fog(max_depth: int):
+    return load_small(
+        "cbox-fog", MS_RES, MS_RES, (*BLACK_WALLS, f"integrator.max_depth={max_depth}")
+    )
+
+
+def mitsuba_beyond(max_depth: int, passes: int, spp: int) -> Estimate:
+    """Mitsuba's unbounded image less its image at ``max_depth``, pass by pass. The two passes
+    of a pair share their seed: their paths agree up to the depth limit, so the difference's
+    noise is that of the longer paths alone (at 16 passes of 256 spp, 1 % of the image mean,
+    against 5 % with independent seeds); the pairs are independent of each other, so the spread
+    of their differences is still the standard error of their mean."""
+    unbounded = mitsuba(black_fog(-1), passes, spp)
+    bounded = mitsuba(black_fog(max_depth), passes, spp)
+    return Estimate(unbounded.samples - bounded.samples)
+
+
+def test_multiple_scattering_alone_matches_mitsuba_beyond_max_depth_2():
+    """vrl at min_depth 3 (its ray lights alone, above) against Mitsuba unbounded less Mitsuba
+    at max_depth 2: image mean and 4x4 blocks, tolerances from both sides' measured variance.
+    Controls: one block darkened beyond the noise fails; so does Mitsuba less its image at
+    max_depth 3 (the subtraction one event off)."""
+    multiple = ours(
+        VirtualRayLights,
+        black_fog(-1),
+        128,
+        clamp="none",
+        light_paths=64,
+        spp_per_iteration=2,
+        min_depth=3,
+    )
+    reference = mitsuba_beyond(2, 32, 256)
+    ok, why = same_image(multiple, reference, alpha=1e-3, block=4)
+    assert ok, f"multiple scattering: {why}"
+    assert_block_check_has_power(multiple, reference, "vrl multiple scattering", size=4)
+    ok, why = same_image(multiple, mitsuba_beyond(3, 32, 256), alpha=1e-3, block=4)
+    assert not ok, f"against Mitsuba beyond max_depth 3: {why}"
 
 
 def test_beam_radius_follows_its_schedule_and_vbl_tends_to_vrl():
