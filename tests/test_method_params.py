@@ -49,6 +49,8 @@ BAD = [
     ("vsl", "max_records", 0, INT_1),
     ("vsl", "free_flight_fraction", -0.5, "a number >= 0 and < 1"),
     ("vsl", "sphere_radius_world", float("inf"), "a number >= 1.73205e-09 and <= 3.4641"),
+    ("vrl", "min_depth", 0, INT_1),
+    ("vbl", "min_depth", "3", INT_1),
 ]
 
 

@@ -111,15 +111,23 @@ constexpr int kMaxPathEvents = 32767;
 // black, 1 shows emitters seen directly, 2 adds direct light, and a negative value (-1) is
 // unlimited (up to kMaxPathEvents). Each method counts the events of the path it builds and
 // asks allows(count).
+// A lower bound too, for the gathering kernels' min_depth (vpl.h; 1, no bound, elsewhere): a
+// path of k events counts iff also k + 1 >= min_depth (Mitsuba's count of vertices), so the
+// images at min_depth m and at max_depth m - 1 add up to the whole image. allows() still
+// decides whether a path may go on; counts() whether what it adds reaches the image.
 class DepthLimit {
 public:
     explicit DepthLimit(int max_depth) : max_depth_(max_depth) {}
     bool allows(int events) const { return max_depth_ < 0 ? events < kMaxPathEvents : events < max_depth_; }
+    bool counts(int events) const { return events + 1 >= min_depth_ && allows(events); }
     bool unlimited() const { return max_depth_ < 0; }
     int max_depth() const { return max_depth_; }
+    void set_min_depth(int min_depth) { min_depth_ = min_depth; }
+    int min_depth() const { return min_depth_; }
 
 private:
     int max_depth_;
+    int min_depth_ = 1;
 };
 
 // Power heuristic with beta = 2 (Veach 1997, eq. 9.13) for two strategies.

@@ -42,7 +42,7 @@
 //   L = beta Phi int_0^l f_x(w) W(v) sigma_s(y) f_y(-w) V Tr(x, y) / |x - y|^2 dv,
 //   v equi-angular about x on the ray light: weight Theta_x / h_x (h_x: x's distance to the line).
 // The joined path has depth + 1 events on the light side (y(v) is a scattering event after the
-// ray light's origin) and the job's on the camera side: gathered iff DepthLimit::allows.
+// ray light's origin) and the job's on the camera side: gathered iff DepthLimit::counts.
 //
 // Beams (vbl). The flux of each point y(v) is spread uniformly over the disc of radius r about it,
 // perpendicular to w_l (the beam's cross-section); the other factors are taken at y(v) (the
@@ -358,7 +358,7 @@ public:
              MediumStats &ms) const {
         const RayLight &l = rays_[size_t(index)];
         const GatherJob &J = c.job;
-        if (!c.depth.allows(l.depth + 1 + J.events)) return;
+        if (!c.depth.counts(l.depth + 1 + J.events)) return;
         RayLightSample s;
         if (J.segment()) {
             const Medium &m = scene.media[size_t(J.at.medium)];

@@ -24,7 +24,7 @@
 //
 // Gather jobs (GatherJob): a camera path's place to gather, a surface point or a straight medium
 // segment, with the path's throughput there and its count of real camera-side events (a path
-// made by joining light y of depth k to a job of s events has k + s events: DepthLimit::allows).
+// made by joining light y of depth k to a job of s events has k + s events: DepthLimit::counts).
 // The camera paths that find them (GatherCameraPath, GatherWalk) follow specular chains from the
 // camera and gather at the first non-specular vertex; the walk and the coverage it gives are
 // explained at GatherWalk.
@@ -281,6 +281,8 @@ public:
         : scene_(scene), steps_(scene, max_depth, rr_depth), depth_(max_depth), continuations_(continuations) {}
 
     bool continuations() const { return continuations_; }
+    // Paths of fewer than min_depth - 1 events add nothing (DepthLimit::counts).
+    void set_min_depth(int min_depth) { depth_.set_min_depth(min_depth); }
 
     // Path p's ray ended on triangle `tri` at distance t_hit, barycentrics (u, v) (tri < 0: it
     // escaped). Its jobs go to segment_job and surface_job (each set at most once; `made` says
@@ -344,7 +346,7 @@ public:
         const Triangle &T = scene_.triangles[size_t(tri)];
         const Material &mat = scene_.materials[size_t(T.material)];
         const Vec3 x = T.point(u, v);
-        if (p.gathering && depth_.allows(p.depth)) p.radiance += p.throughput * scene_.emitted(tri, p.dir);
+        if (p.gathering && depth_.counts(p.depth)) p.radiance += p.throughput * scene_.emitted(tri, p.dir);
         if (mat.type == MaterialType::Null) {
             cross_null_boundary(scene_, p, tri, x);
             return;

@@ -40,7 +40,8 @@
 //   in virtual_lights.h. A directional light has no G: L = beta E F_x(-w_sun) V T, and along a
 //   segment its point comes from the free-flight density alone.
 //   A light of depth k joined to a job of s camera-side events (the gather point's included)
-//   makes a path of k + s real events: it is gathered iff DepthLimit::allows(k + s).
+//   makes a path of k + s real events: it is gathered iff DepthLimit::counts(k + s) (fewer than
+//   max_depth, and at least min_depth - 1: set_min_depth).
 //
 // Clamping (on the geometry term's distance): 1 / |x - y|^2 becomes 1 / max(|x - y|^2, d_i^2),
 // so a contribution can only shrink: a clamped image is darker, never brighter, than the
@@ -168,6 +169,15 @@ public:
         free_flight_fraction_ = c;
     }
     bool continuations() const { return walk_.continuations(); }
+    // Only paths of at least min_depth - 1 real events reach the image (DepthLimit::counts;
+    // Mitsuba's count of vertices): min_depth 3 leaves multiple scattering alone, the image
+    // Mitsuba renders at max_depth -1 less its image at max_depth 2.
+    void set_min_depth(int min_depth) {
+        if (min_depth < 1) throw std::invalid_argument("min_depth must be at least 1");
+        depth_.set_min_depth(min_depth);
+        walk_.set_min_depth(min_depth);
+    }
+    int min_depth() const { return depth_.min_depth(); }
     // Each of a pixel's spp_per_iteration samples gathers its share of the light-path vertices'
     // lights (above); every sample gathers the exact lights.
     void set_share_lights(bool on) { share_lights_ = on; }
@@ -316,7 +326,7 @@ void VirtualLightGathering<Transfer, Extra>::aim(int64_t job, int64_t k, ShadowR
         return;
     }
     const VirtualLight &Y = lights_[size_t(light)];
-    if (!depth_.allows(Y.depth + J.events)) return;
+    if (!depth_.counts(Y.depth + J.events)) return;
     GatherPoint at = J.at;
     Vec3 w;
     RGB value;

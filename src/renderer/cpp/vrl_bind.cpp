@@ -169,6 +169,10 @@ static void bind_vrl(nb::module_ &m) {
              "iteration"_a)
         .def("set_beam_radius", [](K &k, double initial, double alpha) { k.extra().set_beam_radius(initial, alpha); },
              "initial"_a, "alpha"_a, "Beams (vbl) of radius r_i = r_1 i^(alpha - 1), world units.")
+        .def("set_min_depth", &K::set_min_depth, "min_depth"_a,
+             "Only paths of at least min_depth - 1 real scattering events reach the image (Mitsuba's "
+             "count of vertices: 3 leaves multiple scattering alone).")
+        .def_prop_ro("min_depth", &K::min_depth)
         .def("set_phase_sampling", [](K &k, bool on) { k.extra().set_phase_sampling(on); }, "on"_a,
              "Equi-angular angles drawn by the phase functions' fitted product (ray_lights.h).")
         .def("beam_radius", [](const K &k, int64_t iteration) { return k.extra().radius(iteration); },

@@ -13,7 +13,10 @@ points (one on the ray light, by the density that cancels the inverse-square dis
 camera ray, one on the camera ray equi-angularly about it), at a surface by one point on the
 ray light. The point lights' geometry term at surfaces is clamped as vpl's (``clamp``).
 ``phase_sampling`` draws the equi-angular points by the phase functions' fitted product (for
-strongly anisotropic media) instead of uniformly in their angle.
+strongly anisotropic media) instead of uniformly in their angle. ``min_depth`` (default 1: every
+path) keeps only the paths of at least min_depth - 1 scattering events, Mitsuba's count of
+vertices as ``max_depth``'s: at 3, the multiple scattering alone (what Mitsuba renders at
+max_depth -1 less what it renders at max_depth 2), for the tests that compare that part.
 """
 
 from __future__ import annotations
@@ -27,15 +30,21 @@ class VirtualRayLights(VirtualPointLights):
     id = "vrl"
     kernel_class = _core.VirtualRayLights
     record_segments = True
-    parameters = VirtualPointLights.parameters | {"phase_sampling"}
+    parameters = VirtualPointLights.parameters | {"phase_sampling", "min_depth"}
 
     def read_spread(self, p: MethodParams, size: float) -> None:
         super().read_spread(p, size)
         self.phase_sampling = p.flag("phase_sampling", False)
+        self.min_depth = p.integer("min_depth", 1, lo=1)
 
     def configure(self, kernel) -> None:
         super().configure(kernel)
         kernel.set_phase_sampling(self.phase_sampling)
+        kernel.set_min_depth(self.min_depth)
 
     def method_stats(self) -> dict:
-        return {**super().method_stats(), "phase_sampling": self.phase_sampling}
+        return {
+            **super().method_stats(),
+            "phase_sampling": self.phase_sampling,
+            "min_depth": self.min_depth,
+        }
