@@ -64,12 +64,28 @@ static void bind_pm(nb::module_ &m) {
              "surface_radius"_a, "surface_alpha"_a, "volume_radius"_a, "volume_alpha"_a)
         .def("surface_radius", [](const PhotonMapping &g, int64_t it) { return g.surface_schedule().radius(it); },
              "iteration"_a)
-        .def("volume_radius", [](const PhotonMapping &g, int64_t it) { return g.volume_schedule().radius(it); },
-             "iteration"_a)
+        .def("volume_radius",
+             [](const PhotonMapping &g, int64_t it, int medium) { return g.volume_schedule(medium).radius(it); },
+             "iteration"_a, "medium"_a = 0)
+        .def("set_surface_radius", &PhotonMapping::set_surface_radius, "radius"_a)
+        .def("set_volume_radius", &PhotonMapping::set_volume_radius, "medium"_a, "radius"_a)
+        .def_prop_ro("medium_count", &PhotonMapping::medium_count)
+        .def("set_pilot", &PhotonMapping::set_pilot, "surface_neighbours"_a, "volume_neighbours"_a,
+             "extent_fraction"_a, "path_stride"_a)
+        .def_prop_ro("pilot", &PhotonMapping::pilot)
+        // (distances, extent) of a pilot pass: kernel -1 the surfaces', m medium m's.
+        .def("pilot_result",
+             [](const PhotonMapping &g, int kernel) {
+                 const RadiusPilotResult &r = g.pilot_result(kernel);
+                 std::vector<double> d = r.distances;
+                 size_t n = d.size();
+                 return nb::make_tuple(to_numpy(std::move(d), {n}), r.extent);
+             },
+             "kernel"_a)
         .def_prop_ro("kernels",
                      [](const PhotonMapping &g) {
-                         nb::list out;  // (alpha, dimension) of each blur: surfaces, then media
-                         for (const RadiusSchedule *s : {&g.surface_schedule(), &g.volume_schedule()})
+                         nb::list out;  // (alpha, dimension) of each blur: surfaces, then media (one alpha)
+                         for (const RadiusSchedule *s : {&g.surface_schedule(), &g.volume_schedule(0)})
                              out.append(nb::make_tuple(s->alpha, s->dimension));
                          return out;
                      })

@@ -76,7 +76,20 @@ static void bind_ppb(nb::module_ &m) {
                       size_t, double, double, double, int>(),
              "scene"_a, "light_paths"_a, "max_depth"_a, "rr_depth"_a, "seed"_a, "spp_per_iteration"_a, "threads"_a,
              "max_beams"_a, "radius"_a, "alpha"_a, "max_piece_length"_a, "gather_diffuse_bounces"_a)
-        .def("radius", &ProgressivePhotonBeams::radius, "iteration"_a)
+        .def("radius", &ProgressivePhotonBeams::radius, "iteration"_a, "medium"_a = 0)
+        .def("set_beam_radius", &ProgressivePhotonBeams::set_beam_radius, "medium"_a, "radius"_a)
+        .def("set_pilot", &ProgressivePhotonBeams::set_pilot, "surface_neighbours"_a, "beam_neighbours"_a,
+             "extent_fraction"_a, "path_stride"_a)
+        .def_prop_ro("pilot", &ProgressivePhotonBeams::pilot)
+        // (distances, extent) of a pilot pass: kernel -1 the surface photons', m medium m's beams'.
+        .def("pilot_result",
+             [](const ProgressivePhotonBeams &pb, int kernel) {
+                 const BeamPilotResult &r = pb.pilot_result(kernel);
+                 std::vector<double> d = r.distances;
+                 size_t n = d.size();
+                 return nb::make_tuple(to_numpy(std::move(d), {n}), r.extent);
+             },
+             "kernel"_a)
         .def("surface_radius", &ProgressivePhotonBeams::surface_radius, "iteration"_a)
         .def("set_surface_photons", &ProgressivePhotonBeams::set_surface_photons, "radius"_a, "alpha"_a)
         .def_prop_ro("kernels",

@@ -1,0 +1,87 @@
+"""Default kernel radii of pm, sppm and ppb, derived from what the photons see (docs/methods.md,
+"Default radii").
+
+A radius that neither ``{name}_world`` nor ``{name}_relative`` gives is measured by a *pilot*
+before the first iteration: the method's own kernels run once on the light paths of a reserved
+iteration (PILOT_ITERATION, whose random streams no iteration uses) and on a regular sample of
+about PILOT_QUERIES camera paths, and estimate nothing. Where an estimate would be made (a
+camera-path vertex on a diffuse surface, a camera-path segment in a medium), they record how
+far the k nearest photons (ppb: beams) that estimate would gather lie, k being
+``{name}_neighbours``. Each kernel (the surfaces, and each medium on its own) takes the median
+of its queries' distances, so that a typical query gathers k photons an iteration, but at most
+EXTENT_FRACTION of the bounding radius of the photons it could gather (a medium's: its own
+photons'), so that a kernel stays small against the medium it estimates. The radii then depend on
+the photons around the places the camera sees, not on the scene's bounding box: a backdrop
+20 times as large leaves the radii in a medium as they were.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..scene.model import Film
+
+# The light paths and camera paths of the pilot: an iteration number no render reaches.
+PILOT_ITERATION = 1 << 62
+# Camera paths the pilot samples (every n-th path of an iteration of one sample per pixel).
+PILOT_QUERIES = 4096
+# A derived radius is at most this fraction of the bounding radius of its kernel's photons.
+EXTENT_FRACTION = 0.1
+
+
+@dataclass(frozen=True)
+class DerivedRadius:
+    """A kernel's radius in world units and how it was set (for the sidecar)."""
+
+    world: float
+    rule: str
+
+    def record(self) -> dict:
+        return {"world": self.world, "rule": self.rule}
+
+
+def pilot_stride(film: Film, spp: int) -> int:
+    """Every how many camera paths of an iteration (``spp`` per pixel, path i through pixel
+    i mod pixels) the pilot samples one: about PILOT_QUERIES in all, and a stride prime to the
+    number of pixels, so that its paths go through every pixel in turn."""
+    pixels = film.width * film.height
+    stride = max(1, -(-pixels * spp // PILOT_QUERIES))
+    while math.gcd(stride, pixels) != 1:
+        stride += 1
+    return stride
+
+
+def given(world: float, key: str) -> DerivedRadius:
+    return DerivedRadius(world, f"given ({key})")
+
+
+def from_pilot(
+    distances: np.ndarray,
+    extent: float,
+    neighbours: int,
+    what: str,
+    fallback_world: float,
+    fallback_rule: str,
+    minimum: float,
+) -> DerivedRadius:
+    """The radius of one kernel from its pilot queries (``distances`` to the k-th nearest
+    photon or beam of each, inf where fewer than k lie within the cap) and the bounding radius
+    ``extent`` of what it could gather; ``fallback_world`` when the pilot saw nothing to go by.
+    ``what`` names the queries in the rule, e.g. "camera-path vertices on diffuse surfaces"."""
+    if extent <= 0:
+        return DerivedRadius(fallback_world, f"{fallback_rule}: the pilot found nothing to gather")
+    if len(distances) == 0:
+        return DerivedRadius(fallback_world, f"{fallback_rule}: no pilot query reached {what}")
+    median = float(np.median(distances))
+    cap = EXTENT_FRACTION * extent
+    rule = f"median distance to the {neighbours} nearest over {len(distances)} {what}"
+    if not median < cap:
+        return DerivedRadius(
+            max(cap, minimum),
+            f"{EXTENT_FRACTION:g} of the extent of what it gathers ({extent:.4g}): {rule} "
+            "lies beyond it",
+        )
+    return DerivedRadius(max(median, minimum), rule)
