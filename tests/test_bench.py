@@ -12,7 +12,14 @@ from pathlib import Path
 import pytest
 
 BENCH = Path(__file__).resolve().parent.parent / "bench"
-SCRIPTS = ("bench_pt", "bench_ppb", "bench_media", "bench_light_methods")
+SCRIPTS = (
+    "bench_pt",
+    "bench_ppb",
+    "bench_media",
+    "bench_light_methods",
+    "bench_slab",
+    "bench_defaults",
+)
 sys.path.insert(0, str(BENCH))
 
 import benchlib  # noqa: E402
@@ -32,7 +39,7 @@ def test_every_option_is_explained(script):
     r = run(script, "--help")
     assert r.returncode == 0, r.stderr
     options = [line.split()[0] for line in r.stdout.splitlines() if line.startswith("  --")]
-    assert "--threads" in options and "--scenes" in options
+    assert "--threads" in options and ("--scenes" in options or script == "bench_slab")
     for line in r.stdout.split("\n  --")[1:]:
         assert len(line.split()) > 2, f"{script}: option without help: --{line}"
 
@@ -50,6 +57,8 @@ def test_every_option_is_explained(script):
         ("bench_media", ["--scenes", "cbox-fog"], "cbox-fog: no grid medium"),
         ("bench_light_methods", ["--methods", "bdpt"], "invalid choice: 'bdpt'"),
         ("bench_light_methods", ["--size", "0"], "expected an integer >= 1"),
+        ("bench_slab", ["--width", "2"], "--width must be at least 4"),
+        ("bench_defaults", ["--methods", "bdpt"], "unknown method(s) ['bdpt']"),
     ],
 )
 def test_a_bad_option_is_one_line_before_any_work(script, args, message):

@@ -40,7 +40,17 @@ static void bind_pm(nb::module_ &m) {
                  t.query_ray(vec(o), normalize(vec(d)), tmax, r, [&](uint32_t i, double, double) { out.push_back(i); });
                  size_t n = out.size();
                  return to_numpy(std::move(out), {n});
-             }, "origin"_a, "direction"_a, "tmax"_a, "radius"_a);
+             }, "origin"_a, "direction"_a, "tmax"_a, "radius"_a)
+        // The distance within which the k nearest points lie (inf: fewer within max_radius).
+        .def("kth_nearest_to_point",
+             [](const PointTree &t, V3 c, size_t k, double max_radius) {
+                 return t.kth_nearest_to_point(vec(c), k, max_radius, [](uint32_t) { return true; });
+             }, "center"_a, "k"_a, "max_radius"_a)
+        .def("kth_nearest_to_segment",
+             [](const PointTree &t, V3 o, V3 d, double tmax, size_t k, double max_radius) {
+                 return t.kth_nearest_to_segment(vec(o), normalize(vec(d)), tmax, k, max_radius,
+                                                 [](uint32_t) { return true; });
+             }, "origin"_a, "direction"_a, "tmax"_a, "k"_a, "max_radius"_a);
 
     m.def("radius_schedule",
           [](double r1, double alpha, int dimension, int64_t iterations) {

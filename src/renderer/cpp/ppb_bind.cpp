@@ -65,6 +65,20 @@ static void bind_ppb(nb::module_ &m) {
                                        to_numpy(std::move(tb), {k}), to_numpy(std::move(tr), {k}),
                                        to_numpy(std::move(dist), {k}), to_numpy(std::move(sine), {k}));
              }, "origins"_a, "directions"_a, "tmax"_a)
+        // For each ray: the distance within which its k nearest beams lie (inf: fewer within
+        // max_radius); needs a tree built with radius 0.
+        .def("kth_nearest",
+             [](const BeamBvh &bvh, Array<double> origins, Array<double> dirs, Array<double> tmax, size_t k,
+                double max_radius) {
+                 size_t n = tmax.shape(0);
+                 std::vector<double> out(n);
+                 for (size_t i = 0; i < n; ++i) {
+                     const double *o = origins.data() + 3 * i, *d = dirs.data() + 3 * i;
+                     out[i] = bvh.kth_nearest(Vec3(o[0], o[1], o[2]), normalize(Vec3(d[0], d[1], d[2])),
+                                              tmax.data()[i], k, max_radius, [](int32_t) { return true; });
+                 }
+                 return to_numpy(std::move(out), {n});
+             }, "origins"_a, "directions"_a, "tmax"_a, "k"_a, "max_radius"_a)
         .def_prop_ro("beam_count", [](const BeamBvh &b) { return b.beams().size(); })
         .def_prop_ro("piece_count", &BeamBvh::piece_count)
         .def_prop_ro("node_count", &BeamBvh::node_count)
