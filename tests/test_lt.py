@@ -1,4 +1,4 @@
-"""lt (light tracing) and the shared light-path tracer (cpp/lightpath.h).
+"""lt (light tracing) and the shared light-path tracer (cpp/subpaths.h).
 
 Parity: lt's image must agree with Mitsuba's volpath and with our pt on cbox and
 cbox-fog (32x32), judged by z-scores from measured variance (tests/parity.py); the

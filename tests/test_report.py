@@ -340,7 +340,7 @@ def report(tmp_path_factory: pytest.TempPathFactory) -> Path:
     scene_file = wd / "scene.yaml"  # only its self-description is read
     scene_file.write_text(
         "description: A toy scene for the report test.\n"
-        "stresses: [direct light]\nexpected_winners: [pt, sppm, bdpt]\n"
+        "stresses: [direct light]\nexpected_winners: [pt, sppm, vrl]\n"
     )
     build_scene_page(
         {
@@ -412,7 +412,7 @@ def test_report_files(report: Path) -> None:
     assert "<svg" in index and 'href="scene-toy.html"' in index
     assert "Reference error removed" in index and "ref. error removed" in page
     assert 'id="viewer"' in page and 'src="data/toy.js"' in page
-    assert "A toy scene for the report test." in page and "bdpt (not implemented yet)" in page
+    assert "A toy scene for the report test." in page and "vrl (not implemented yet)" in page
     # tables name their columns as a reader would: no identifiers
     assert "<th>speed-up vs pt</th>" in page and "<th>time [s]</th>" in page
     assert "speedup_vs" not in page and "<th>one_minus_ssim</th>" not in page
@@ -495,7 +495,7 @@ def test_a_variant_counts_as_its_method_among_the_expected_winners(report: Path)
     text = _about_scene(
         str(scene_file), "toy", summary, "relmse", ["pt-delta", "lt"], {"pt-delta": "pt"}
     )
-    expected = "pt, sppm (not in this study), bdpt (not implemented yet)"
+    expected = "pt, sppm (not in this study), vrl (not implemented yet)"
     assert f"<b>Expected to win:</b> {expected}." in text
     won = r"<b>Won</b> at [^:]+: (pt-delta \(as expected|lt \(not among the expected)"
     assert re.search(won, text)

@@ -25,6 +25,11 @@ IMPLEMENTED: dict[str, tuple[str, str, str]] = {
         "ProgressivePhotonBeams",
         "progressive photon beams (beam x beam 1D) in media, photons on surfaces",
     ),
+    "bdpt": (
+        "bdpt",
+        "BidirectionalPathTracing",
+        "bidirectional path tracing in media, every connection strategy, MIS",
+    ),
     "mitsuba": ("mitsuba", "MitsubaVolpath", "Mitsuba 3 volpath at the same budget"),
 }
 
@@ -36,7 +41,6 @@ EXAMPLES: dict[str, tuple[str, str, str]] = {
 # Methods of the study's method table (docs/methods.md) that pgi does not implement yet.
 # Scenes may name them among the methods expected to win; nothing can render with them.
 NOT_YET_IMPLEMENTED: dict[str, str] = {
-    "bdpt": "bidirectional path tracing in media",
     "vpl": "virtual point lights",
     "vrl": "virtual ray lights",
     "vbl": "progressive virtual beam lights",

@@ -28,7 +28,7 @@ import numpy as np
 from . import __version__
 from .errors import PgiError
 from .fingerprint import render_fingerprint
-from .imageio import write_image_and_sidecar
+from .imageio import write_exr, write_image_and_sidecar
 from .methods import get_method
 from .scene.model import Scene
 
@@ -49,6 +49,11 @@ def snapshot_label(seconds: float) -> str:
     """How a time appears in a snapshot's file name: 4 -> "4", 0.5 -> "0.5", 1e6 -> "1e+06"
     (six significant digits; the workflow names its budgets' files with this too)."""
     return f"{float(seconds):g}"
+
+
+def extra_image_path(out: Path, name: str) -> Path:
+    """out.exr -> out.s2t3.exr for a method's extra image named s2t3."""
+    return out.with_name(f"{out.stem}.{name}{out.suffix}")
 
 
 def snapshot_path(out: Path, seconds: float) -> Path:
@@ -286,6 +291,10 @@ def render(
     final = sidecar(render_seconds, None)
     try:
         write(out, final)
+        # Images a method makes beside its own (bdpt's per-strategy images): out.NAME.exr.
+        extras = method.extra_images() if hasattr(method, "extra_images") else {}
+        for name, image in extras.items():
+            write_exr(extra_image_path(out, name), image, {"pgi": f"{settings.method} {name}"})
     except BaseException:  # e.g. a full disk: the snapshots written so far stay, and are named
         if written:
             print(

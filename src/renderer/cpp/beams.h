@@ -38,7 +38,7 @@ namespace pgi {
 struct Beam {
     Vec3 origin, dir;  // dir unit
     double length = 0;
-    RGB power{0.0};    // flux weight at the origin (see lightpath.h)
+    RGB power{0.0};    // flux weight at the origin (see subpaths.h)
     RGB spectral_ratio{1.0};  // the light path's channel pdf ratios at the origin
     int32_t medium = -1;
     int16_t depth = 0; // real scattering events of the light path before the origin (16 bits

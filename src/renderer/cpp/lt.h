@@ -2,7 +2,7 @@
 //   Veach 1997, "Robust Monte Carlo methods for light transport simulation", ch. 10;
 //   Arvo & Kirk 1990, "Particle transport and image synthesis".
 //
-// Each iteration traces N light paths (lightpath.h) and connects every
+// Each iteration traces N light paths (subpaths.h) and connects every
 // recorded vertex -- including the emission point of area lights, so that
 // directly visible emitters are counted once, by this path -- to the pinhole
 // camera. Connections cross null boundaries and media through the ShadowQueue
@@ -25,7 +25,7 @@
 
 #include <memory>
 
-#include "lightpath.h"
+#include "subpaths.h"
 
 namespace pgi {
 

@@ -1,7 +1,7 @@
 // Python bindings of the native core: scene construction, the wavefront
 // kernels of each method, and probes of the sampling routines for tests.
 #include "bindings.h"
-#include "lightpath.h"
+#include "subpaths.h"
 #include "surface_photons.h"
 
 namespace nb = nanobind;
@@ -375,7 +375,7 @@ static void add_sampling_probes(nb::module_ &m) {
               }
               return to_numpy(std::move(pdf), {n});
           }, "scene"_a, "from_point"_a, "triangle"_a, "hit"_a);
-    // Light-path emission: u is (n, 6) uniforms (see sample_emission in lightpath.h).
+    // Light-path emission: u is (n, 6) uniforms (see sample_emission in subpaths.h).
     m.def("sample_emission",
           [](const Scene &s, Array<double> u) {
               size_t n = u.shape(0);

@@ -20,8 +20,8 @@
 // the strategies that can sample a path: in a homogeneous medium sigma is the mean of the
 // channels' extinction and tau = sigma * length (exact for grey media; a grey stand-in for the
 // hero-channel spectral MIS of chromatic ones), in a density grid sigma(x) is the grid's
-// extinction at x and tau integrates the mean of each majorant cell's majorant and minorant
-// along the segment (exact in cells of constant density). Null boundaries add no vertex: the
+// extinction at x and tau the exact integral of the interpolated density along the segment
+// (medium.h, flight_depth): then P_flight is the true free-flight density there too. Null boundaries add no vertex: the
 // flight multiplies over the media it crosses.
 // Special vertices:
 //   - a vertex that scattered by a delta BSDF (`delta`): p_dir is the discrete probability of
@@ -32,9 +32,13 @@
 //     position (`delta`, pdf_fwd = the selection probability), a directional light a delta
 //     direction, and its first vertex's pdf_fwd is the area density on its disk times |cos|
 //     (no 1 / distance^2: the disk's rays are parallel);
-//   - the last vertex of a subpath keeps pdf_rev = 0 (nothing was sampled from a next one).
+//   - a camera vertex (kind Camera, the first of a camera subpath): pdf_fwd 1; the camera
+//     samples directions uniformly over its film, 1 / (A_film cos^3) per solid angle;
+//   - a vertex gets its pdf_rev once two vertices follow it (the density back depends on where
+//     the walk through the next one came from); until then, and for the last two vertices of
+//     a subpath, it stays 0.
 // Densities are filled only when the tracer records complete subpaths (every vertex, delta
-// ones included: lightpath.h, set_recording); otherwise pdf_fwd and pdf_rev stay 0.
+// ones included: subpaths.h, set_recording); otherwise pdf_fwd and pdf_rev stay 0.
 #pragma once
 
 #include <cstdint>
@@ -43,7 +47,7 @@
 
 namespace pgi {
 
-enum class VertexKind : uint8_t { Emission = 0, Surface = 1, Medium = 2 };
+enum class VertexKind : uint8_t { Emission = 0, Surface = 1, Medium = 2, Camera = 3 };
 
 // One scattering (or emission) vertex of a subpath.
 struct PathVertex {
@@ -54,6 +58,7 @@ struct PathVertex {
                              // camera subpaths: the importance-weighted throughput
     double pdf_fwd = 0;      // densities (above): area measure on surfaces and lights,
     double pdf_rev = 0;      // volume measure in media
+    double tau_in = 0;       // the stand-in optical depth of the edge from the vertex before
     int32_t path = 0;        // index of the subpath within its iteration
     int32_t triangle = -1;   // surface and area-light vertices
     int32_t medium = -1;     // medium vertices: the medium; surface: the medium on the side of wi
@@ -66,7 +71,7 @@ struct PathVertex {
 
 // A straight piece of a light subpath inside one medium: a photon beam (ppb) or a ray light
 // (vrl, vbl). Depths are stored in 16 bits: the loader keeps min(rr_depth, bounded max_depth)
-// <= 10000, and roulette then ends a path of 32767 events with near certainty (lightpath.h).
+// <= 10000, and roulette then ends a path of 32767 events with near certainty (subpaths.h).
 struct MediumSegment {
     Vec3 origin, dir;        // dir unit
     double length = 0;       // to the sampled collision, or t_surface when none was sampled

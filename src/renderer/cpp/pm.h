@@ -9,7 +9,7 @@
 //   Knaus & Zwicker 2011, "Progressive photon mapping: a probabilistic approach".
 //
 // One iteration, each step a pass (passes.h):
-//   1. light paths (lightpath.h, traced first): surface photons = vertices on non-delta
+//   1. light paths (subpaths.h, traced first): surface photons = vertices on non-delta
 //      surfaces, volume photons = real collisions in media; `begin` puts each set in a
 //      kd-tree (photon_map.h), takes the iteration's radii from their schedules and starts
 //      spp_per_iteration camera paths per pixel (box filter);
@@ -48,7 +48,7 @@
 #include "boundary_kernels.h"
 #include "camera_path.h"  // camera samples and wave bookkeeping shared with pt and ppb
 #include "radius_schedule.h"
-#include "lightpath.h"
+#include "subpaths.h"
 #include "photon_map.h"
 #include "surface_photons.h"
 

@@ -195,7 +195,7 @@ RGB ProgressivePhotonBeams::gather(BeamGatherPath &p, double t_end, const Bounda
         RGB weight;
         if (homogeneous) {
             // Camera transmittance in closed form; the short beam's Tr(s) / P(t > s)
-            // with the light path's hero-channel pdf (lightpath.h).
+            // with the light path's hero-channel pdf (subpaths.h).
             RGB beam_tr = beer_lambert(m.sigma_t, s);
             double survival = mean(b.spectral_ratio * beam_tr);
             if (!(survival > 0)) return;

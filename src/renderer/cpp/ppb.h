@@ -7,7 +7,7 @@
 //   Knaus & Zwicker 2011, "Progressive photon mapping: a probabilistic approach"
 //   (the radius schedule, with a 1D kernel: d = 1).
 //
-// One iteration: light paths from the shared tracer (lightpath.h) leave their
+// One iteration: light paths from the shared tracer (subpaths.h) leave their
 // medium segments as *short* photon beams (each ends at the collision the
 // tracer sampled, or at the surface when none was); camera paths then walk
 // from the camera through media without scattering there, and every medium
@@ -15,7 +15,7 @@
 //   L += T_cam(t) sigma_s(x) phase(theta) * power * T_beam(s) / P_beam(s)
 //        * 1/(2r) / sin(theta) / N_light_paths                      (BB1D)
 // where x is the closest point on the camera segment, s the distance along the
-// beam, T/P the short-beam weight (lightpath.h), r this iteration's radius for the beam's
+// beam, T/P the short-beam weight (subpaths.h), r this iteration's radius for the beam's
 // medium (each medium has a schedule of its own). Near the surfaces a camera segment starts
 // and ends on, the blur lies parallel to them instead of along the common perpendicular
 // (boundary_kernels.h), so that it no longer reaches past them, where there are no beams.
@@ -51,7 +51,7 @@
 
 #include "beams.h"
 #include "boundary_kernels.h"
-#include "lightpath.h"
+#include "subpaths.h"
 #include "photon_map.h"
 #include "surface_photons.h"
 #include "radius_schedule.h"

@@ -166,6 +166,8 @@ public:
     // Solid-angle pdf that sample_light would pick direction from `from` to the
     // point `hit` on emissive triangle `tri`.
     double area_light_pdf(int tri, const Vec3 &from, const Vec3 &hit) const;
+    // The light index of area emitter `emitter`.
+    int light_of_emitter(int emitter) const { return light_of_emitter_[size_t(emitter)]; }
     // Radiance leaving triangle `tri` towards -d (one-sided).
     RGB emitted(int tri, const Vec3 &d) const {
         const Triangle &t = triangles[tri];

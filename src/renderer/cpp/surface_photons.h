@@ -4,7 +4,7 @@
 
 #include <vector>
 
-#include "lightpath.h"
+#include "subpaths.h"
 #include "photon_map.h"
 
 namespace pgi {

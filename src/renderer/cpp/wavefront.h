@@ -9,6 +9,7 @@
 #include <numeric>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "scene.h"
@@ -151,6 +152,7 @@ struct ShadowRay {
     double lead = 0;          // medium behind the origin (RayStart)
     int64_t receiver = 0;     // what receives the contribution (a path or a pixel)
     RGB contribution;
+    double tau = 0;           // queues that track flights: the stand-in optical depth so far
     Sampler rng;
     bool live = false;
     // Distance left along dir; origins move off surfaces, so it is measured, not tracked.
@@ -259,7 +261,9 @@ public:
     }
     // Advances each travelling ray by its traced segment (hit j belongs to the
     // j-th travelling ray); deliver(receiver, value) receives the contributions
-    // of rays that reached their target unoccluded.
+    // of rays that reached their target unoccluded, deliver(receiver, value, tau) also the
+    // stand-in optical depth of the ray's line (densities.h: MIS needs it of a connection) when
+    // the queue tracks flights.
     template <typename Deliver>
     void resolve(const Scene &scene, const Hits &hits, int threads, MediumStats &stats, Deliver &&deliver) {
         hits.expect(travelling_.size(), "resolve_shadows");
@@ -279,12 +283,17 @@ public:
             }
             double t = blocked ? double(hits.tfar[j]) : remaining;
             if (r.medium >= 0) {
-                r.contribution *=
-                    transmittance(scene.media[r.medium], r.origin - r.dir * r.lead, r.dir, t + r.lead, r.rng, counts);
+                const Medium &m = scene.media[r.medium];
+                r.contribution *= transmittance(m, r.origin - r.dir * r.lead, r.dir, t + r.lead, r.rng, counts);
+                if (track_flights_) r.tau += flight_depth(m, r.origin - r.dir * r.lead, r.dir, t + r.lead);
             }
             if (!blocked) {
                 r.live = false;
-                if (!is_black(r.contribution)) deliver(r.receiver, r.contribution);
+                if (is_black(r.contribution)) continue;
+                if constexpr (std::is_invocable_v<Deliver, int64_t, const RGB &, double>)
+                    deliver(r.receiver, r.contribution, r.tau);
+                else
+                    deliver(r.receiver, r.contribution);
                 continue;
             }
             if (is_black(r.contribution)) {  // nothing left to carry through the boundary
@@ -299,9 +308,13 @@ public:
         stats += counts;
     }
 
+    // Whether resolve sums each ray's stand-in optical depth (its kernel sets tau = 0).
+    void track_flights(bool on) { track_flights_ = on; }
+
 private:
     std::vector<ShadowRay> slots_;
     std::vector<int32_t> travelling_;  // slots whose rays are still on their way, in order
+    bool track_flights_ = false;
     size_t opened_ = 0;
     bool listed_ = false;  // travelling_ has been built since open()
 };

@@ -79,11 +79,17 @@ class NativeMethod:
         max_records: int,
         vertices: bool = True,
         segments: bool = True,
+        complete: bool = False,
+        warn_of_peaked_phase: bool = True,
     ) -> Wavefront:
-        """``paths`` light paths per iteration (cpp/lightpath.h), recording vertices and medium
-        segments as asked. Records beyond ``max_records`` stop the render with an error that
-        names ``paths_param`` (the parameter that sets ``paths``) and max_records."""
-        warn_about_peaked_phase_functions(self.scene)
+        """``paths`` light paths per iteration (cpp/subpaths.h), recording vertices and medium
+        segments as asked, or complete subpaths with their densities. Records beyond
+        ``max_records`` stop the render with an error that names ``paths_param`` (the parameter
+        that sets ``paths``) and max_records. ``warn_of_peaked_phase``: for methods that
+        evaluate the phase function where light and camera paths meet with no other strategy
+        to weigh against (not bdpt, whose MIS gives such joins little weight)."""
+        if warn_of_peaked_phase:
+            warn_about_peaked_phase_functions(self.scene)
         kernel = _core.LightPaths(
             self.native.core,
             self.scene.integrator.max_depth,
@@ -93,9 +99,9 @@ class NativeMethod:
             self.threads,
             max_records,
         )
-        kernel.set_recording(vertices, segments)
+        kernel.set_recording(vertices, segments, complete)
         check_emission_media(self.native)  # the kernel reads each light's medium from its scene
-        return _LightPathsWavefront(kernel, self.tracer, paths_param, self.wavefronts)
+        return RecordsWavefront(kernel, self.tracer, paths_param, self.wavefronts)
 
     def run_iteration(self, iteration: int) -> None:
         self.run_passes(iteration)
@@ -119,8 +125,9 @@ class NativeMethod:
         }
 
 
-class _LightPathsWavefront(Wavefront):
-    """Light paths, whose records may exceed their bound: the error says what to change."""
+class RecordsWavefront(Wavefront):
+    """Subpaths (light or camera paths), whose records may exceed their bound: the error says
+    what to change. Registers itself among the method's wavefronts."""
 
     def __init__(self, kernel: Any, tracer: EmbreeTracer, paths_param: str, registry: list) -> None:
         super().__init__(kernel, tracer)

@@ -1,7 +1,8 @@
-"""What the light-side methods (lt, pm, sppm, ppb) check of a scene before they trace light
-paths (the native tracer is ``cpp/lightpath.h``; its header documents the records and their
-units): that each light's paths can start in one medium (the medium each light emits into is
-the scene's, renderer.engine), and that no phase function is too peaked for them.
+"""What the methods that trace light paths (lt, pm, sppm, ppb, bdpt) check of a scene first
+(the native tracer is ``cpp/subpaths.h``; its header documents the records and their units):
+that each light's paths can start in one medium (the medium each light emits into is the
+scene's, renderer.engine), and that no phase function is too peaked for the methods that
+evaluate it where light and camera paths meet.
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 Veach 1997, "Robust Monte Carlo methods for light transport simulation", ch. 10;
 Arvo and Kirk 1990, "Particle transport and image synthesis". Each iteration
-traces ``light_paths`` paths from the lights (``cpp/lightpath.h``) and connects
+traces ``light_paths`` paths from the lights (``cpp/subpaths.h``) and connects
 every vertex, the emission points of area lights included, to the camera
 (``cpp/lt.h``, which derives the camera importance). Paths that reach the
 camera through a specular surface cannot be connected to a pinhole camera

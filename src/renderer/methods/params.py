@@ -115,6 +115,16 @@ class MethodParams:
         self.used[key] = self.params[key]
         return self.params[key]
 
+    def flag(self, key: str, default: bool) -> bool:
+        """A yes/no parameter (true or false)."""
+        if key not in self.params:
+            self.used[key] = default
+            return default
+        if not isinstance(self.params[key], bool):
+            self.fail(key, "true or false")
+        self.used[key] = self.params[key]
+        return self.params[key]
+
     def number(
         self,
         key: str,

@@ -4,7 +4,7 @@ Jensen 1996, "Global illumination using photon maps"; Jensen and Christensen 199
 "Efficient simulation of light transport in scenes with participating media using
 photon maps"; Jarosz, Zwicker and Jensen 2008, "The beam radiance estimate for
 volumetric photon mapping". The kernels are ``cpp/pm.h`` (gathering),
-``cpp/photon_map.h`` (kd-tree) and ``cpp/lightpath.h`` (photon tracing).
+``cpp/photon_map.h`` (kd-tree) and ``cpp/subpaths.h`` (photon tracing).
 
 Each iteration traces new photons, builds their maps and gathers along one
 camera path per pixel sample; the image is the mean of the iterations. The

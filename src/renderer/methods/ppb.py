@@ -7,7 +7,7 @@ points and beams"; the radius schedule of Knaus and Zwicker 2011 with d = 1.
 
 One iteration is a sequence of passes:
 
-1. trace ``light_paths`` light paths (``cpp/lightpath.h``); their medium segments become
+1. trace ``light_paths`` light paths (``cpp/subpaths.h``); their medium segments become
    short photon beams (up to the sampled collision);
 2. build the beam BVH (``cpp/beams.h``) with this iteration's radius
    r_i = r_1 * i^(alpha - 1);

@@ -1,5 +1,6 @@
-// Light-path tracing (see lightpath.h for the API and the meaning of records).
-#include "lightpath.h"
+// Subpaths from the lights and from the camera (see subpaths.h for the API and the meaning of
+// records).
+#include "subpaths.h"
 
 #include <numeric>
 #include <stdexcept>
@@ -7,22 +8,29 @@
 
 namespace pgi {
 
-LightPaths::LightPaths(std::shared_ptr<const Scene> scene, int max_depth, int rr_depth, uint64_t seed,
-                       int64_t paths_per_iteration, int threads, int64_t max_records)
+template <Side S>
+Subpaths<S>::Subpaths(std::shared_ptr<const Scene> scene, int max_depth, int rr_depth, uint64_t seed,
+                      int64_t paths_per_iteration, int threads, int64_t max_records)
     : scene_(std::move(scene)), depth_(max_depth), rr_depth_(rr_depth), seed_(seed),
       threads_(std::max(1, threads)), max_records_(max_records) {
     if (paths_per_iteration <= 0) throw std::invalid_argument("paths_per_iteration must be positive");
+    if constexpr (S == Side::Camera) {
+        camera_spp_ = int(paths_per_iteration);
+        paths_per_iteration *= int64_t(scene_->camera.width) * scene_->camera.height;
+    }
     paths_.resize(size_t(paths_per_iteration));
 }
 
-void LightPaths::check_capacity() const {
+template <Side S>
+void Subpaths<S>::check_capacity() const {
     int64_t records = int64_t(vertices_.size() + segments_.size());
     if (max_records_ > 0 && records > max_records_)
-        throw std::length_error("light paths: " + std::to_string(records) +
+        throw std::length_error(std::string(S == Side::Light ? "light" : "camera") + " paths: " + std::to_string(records) +
                                 " records exceed the configured bound of " + std::to_string(max_records_));
 }
 
-void LightPaths::begin(int64_t iteration) {
+template <Side S>
+void Subpaths<S>::begin(int64_t iteration) {
     iteration_ = iteration;
     vertices_.clear();
     segments_.clear();
@@ -38,11 +46,15 @@ void LightPaths::begin(int64_t iteration) {
     tracks_.resize(complete_ ? n : 0);
 #pragma omp parallel for schedule(static) num_threads(threads_)
     for (int64_t i = 0; i < int64_t(n); ++i) {
-        LightPathState &p = paths_[i];
-        p = LightPathState();
-        p.rng = Sampler(stream_key(seed_ ^ stream_tag::kLightPaths, uint64_t(iteration), uint64_t(i)));
-        p.spectral.hero = hero_channel(p.rng);
-        emit(p, size_t(i));
+        SubpathState &p = paths_[i];
+        if constexpr (S == Side::Camera) {
+            start_at_camera(p, size_t(i), iteration);
+        } else {
+            p = SubpathState();
+            p.rng = Sampler(stream_key(seed_ ^ stream_tag::kLightPaths, uint64_t(iteration), uint64_t(i)));
+            p.spectral.hero = hero_channel(p.rng);
+            emit(p, size_t(i));
+        }
     }
     paths_traced_ += n;
     collect(n, [](size_t slot) { return slot; });
@@ -125,7 +137,25 @@ EmissionSample sample_emission(const Scene &scene, const double u[6]) {
     return s;
 }
 
-void LightPaths::emit(LightPathState &p, size_t slot) {
+// A camera sample: path `slot` samples pixel slot % pixels, with its stream keyed by (seed,
+// sample, pixel) as pt's are (camera_path.h); its first vertex is the camera.
+template <Side S>
+void Subpaths<S>::start_at_camera(SubpathState &p, size_t slot, int64_t iteration) {
+    const Camera &cam = scene_->camera;
+    start_camera_sample(p, cam, int64_t(slot), iteration, camera_spp_, seed_ ^ stream_tag::kCameraPaths);
+    p.power = RGB(1.0);
+    PathVertex &v = record_vertex(slot, p, VertexKind::Camera, cam.origin, Vec3(0.0));
+    v.pdf_fwd = 1;
+    DensityTrack &t = track(p);
+    t = DensityTrack{};
+    t.last.pos = t.piece_start = cam.origin;
+    t.last.normal = normalize(cam.forward);
+    t.last.sampling = DensityVertex::Sampling::Camera;
+    p.alive = depth_.allows(1);
+}
+
+template <Side S>
+void Subpaths<S>::emit(SubpathState &p, size_t slot) {
     const Scene &scene = *scene_;
     double u[6];
     for (double &v : u) v = p.rng.next();
@@ -184,7 +214,8 @@ void LightPaths::emit(LightPathState &p, size_t slot) {
     p.alive = depth_.allows(1);
 }
 
-size_t LightPaths::shade(const Hits &hits) {
+template <Side S>
+size_t Subpaths<S>::shade(const Hits &hits) {
     const Scene &scene = *scene_;
     hits.expect(active_.size(), "light-path scatter");
     uint64_t lookups = 0;
@@ -193,7 +224,7 @@ size_t LightPaths::shade(const Hits &hits) {
     slot_has_segment_.assign(n, 0);
 #pragma omp parallel for schedule(dynamic, 256) num_threads(threads_) reduction(+ : lookups)
     for (int64_t k = 0; k < int64_t(n); ++k) {
-        LightPathState &p = paths_[active_[k]];
+        SubpathState &p = paths_[active_[k]];
         int tri = hits.prim[k];
         double t_hit = tri >= 0 ? double(hits.tfar[k]) : kInf;
         if (p.medium >= 0) {
@@ -254,7 +285,8 @@ size_t LightPaths::shade(const Hits &hits) {
     return 0;
 }
 
-void LightPaths::scatter_in_medium(LightPathState &p, size_t slot, const Vec3 &x, MediumStats &stats) {
+template <Side S>
+void Subpaths<S>::scatter_in_medium(SubpathState &p, size_t slot, const Vec3 &x, MediumStats &stats) {
     const Medium &m = scene_->media[p.medium];
     ++p.depth;
     Vec3 wi = -p.dir;
@@ -277,7 +309,8 @@ void LightPaths::scatter_in_medium(LightPathState &p, size_t slot, const Vec3 &x
     p.alive = russian_roulette(p);
 }
 
-void LightPaths::scatter_on_surface(LightPathState &p, size_t slot, int tri, const Vec3 &x) {
+template <Side S>
+void Subpaths<S>::scatter_on_surface(SubpathState &p, size_t slot, int tri, const Vec3 &x) {
     const Triangle &T = scene_->triangles[tri];
     const Material &mat = scene_->materials[T.material];
     ++p.depth;
@@ -310,24 +343,30 @@ void LightPaths::scatter_on_surface(LightPathState &p, size_t slot, int tri, con
         p.alive = false;
         return;
     }
-    // Adjoint transport: importance is not scaled by 1/eta^2 on refraction (lightpath.h).
-    const BsdfSample bs = advance_by_bsdf(*scene_, p, p.power, tri, x, /*radiance=*/false);
+    // Light paths carry importance (adjoint transport: no 1/eta^2 on refraction), camera paths
+    // radiance.
+    const BsdfSample bs = advance_by_bsdf(*scene_, p, p.power, tri, x, /*radiance=*/S == Side::Camera);
     if (!bs.valid) return;
+    if constexpr (S == Side::Camera) p.eta2 *= bs.eta * bs.eta;
     p.after_specular = bs.delta;
     p.alive = russian_roulette(p);
 }
 
-// After rr_depth real events, survive_roulette on max(power) / max(emitted).
-bool LightPaths::russian_roulette(LightPathState &p) {
+// After rr_depth real events, survive_roulette on max(power) / max(emitted) for light paths,
+// on max(throughput) eta^2 for camera paths (as pt's).
+template <Side S>
+bool Subpaths<S>::russian_roulette(SubpathState &p) {
     if (is_black(p.power)) return false;
     if (p.depth <= rr_depth_) return true;
-    return survive_roulette(p.power, max_component(p.power) * p.inv_initial, p.rng, scene_->roulette);
+    const double q = max_component(p.power) * (S == Side::Camera ? p.eta2 : p.inv_initial);
+    return survive_roulette(p.power, q, p.rng, scene_->roulette);
 }
 
 // Slot `slot`'s vertex: path p at x, arrived from wi, with its power, medium, depth and
 // specular flag as they are now; the caller adds what its kind needs (a triangle).
-PathVertex &LightPaths::record_vertex(size_t slot, const LightPathState &p, VertexKind kind, const Vec3 &x,
-                                      const Vec3 &wi) {
+template <Side S>
+PathVertex &Subpaths<S>::record_vertex(size_t slot, const SubpathState &p, VertexKind kind, const Vec3 &x,
+                                       const Vec3 &wi) {
     PathVertex &v = slot_vertex_[slot];
     v = PathVertex();
     v.pos = x;
@@ -342,64 +381,37 @@ PathVertex &LightPaths::record_vertex(size_t slot, const LightPathState &p, Vert
     return v;
 }
 
-// Density at vertex v of the direction `out`, for a walk that reached v from direction `back`.
-static double direction_density(const Scene &scene, const DensityVertex &v, const Vec3 &out, const Vec3 &back) {
-    switch (v.sampling) {
-        case DensityVertex::Sampling::Cosine: return std::max(0.0, dot(v.normal, out)) * kInvPi;
-        case DensityVertex::Sampling::Phase: return phase_eval(scene.media[v.medium].phase, back, out);
-        case DensityVertex::Sampling::Dielectric: {
-            const double cos_in = dot(back, v.normal), eta = cos_in > 0 ? v.pdf_dir : 1 / v.pdf_dir;
-            double cos_t;
-            const double F = fresnel_dielectric(std::abs(cos_in), eta, cos_t);
-            return (dot(out, v.normal) > 0) == (cos_in > 0) ? F : 1 - F;  // reflected : refracted
-        }
-        default: return v.pdf_dir;
-    }
-}
-
-// The change of measure at v for a direction `d` through it: |cos| on a surface or at an area
-// light, the extinction in a medium.
-static double measure_at(const DensityVertex &v, const Vec3 &d) {
-    return v.sampling == DensityVertex::Sampling::Phase ? v.sigma : std::abs(dot(v.normal, d));
-}
-
 // The density with which the path sampled x from its last vertex.
-double LightPaths::forward_density(const DensityTrack &t, const DensityVertex &x) const {
-    const DensityVertex &last = t.last;
-    const Vec3 to = x.pos - last.pos;
-    const double d2 = dot(to, to);
-    if (!(d2 > 0)) return 0.0;
-    const Vec3 out = to / std::sqrt(d2);
-    const double pdf_dir = direction_density(*scene_, last, out, last.wi);
-    return pdf_dir * std::exp(-x.tau_in) * measure_at(x, out) / (last.at_infinity ? 1.0 : d2);
+template <Side S>
+double Subpaths<S>::forward_density(const DensityTrack &t, const DensityVertex &x) const {
+    return vertex_density(*scene_, t.last, t.last.wi, x, x.tau_in);
 }
 
 // The vertex before the last one as a walk coming the other way, from x through the last
 // vertex, would sample it. A light's delta position or direction cannot be sampled so: 0.
-void LightPaths::reverse_density(const DensityTrack &t, const DensityVertex &x) {
+template <Side S>
+void Subpaths<S>::reverse_density(const DensityTrack &t, const DensityVertex &x) {
     const DensityVertex &last = t.last, &before = t.before;
     if (before.record < 0) return;
     PathVertex &prev = vertices_[size_t(before.record)];
-    const Vec3 to = before.pos - last.pos, from = x.pos - last.pos;
-    const double d2 = dot(to, to), f2 = dot(from, from);
-    if (before.delta_light || !(d2 > 0) || !(f2 > 0)) {
-        prev.pdf_rev = 0;
-        return;
-    }
-    const Vec3 back = to / std::sqrt(d2);
-    const double pdf_dir = direction_density(*scene_, last, back, from / std::sqrt(f2));
-    prev.pdf_rev = pdf_dir * std::exp(-last.tau_in) * measure_at(before, back) / d2;
+    const Vec3 from = x.pos - last.pos;
+    const double f2 = dot(from, from);
+    prev.pdf_rev = before.delta_light || !(f2 > 0)
+                       ? 0.0
+                       : vertex_density(*scene_, last, from / std::sqrt(f2), before, last.tau_in);
 }
 
 // A new vertex x of a complete subpath (`record`: its record, if kept): its forward density,
 // the reverse density of the vertex two back, and x becomes the last vertex.
-void LightPaths::advance_densities(LightPathState &p, DensityVertex x, PathVertex *record) {
+template <Side S>
+void Subpaths<S>::advance_densities(SubpathState &p, DensityVertex x, PathVertex *record) {
     DensityTrack &t = track(p);
     const Vec3 to_last = t.last.pos - x.pos;
     x.wi = t.last.at_infinity ? -p.dir : to_last / length(to_last);
     x.tau_in = t.flight_tau;
     if (record) {
         record->wi = x.wi;  // as the densities take it: from the recorded positions
+        record->tau_in = x.tau_in;
         record->pdf_fwd = forward_density(t, x);
     }
     reverse_density(t, x);
@@ -409,8 +421,9 @@ void LightPaths::advance_densities(LightPathState &p, DensityVertex x, PathVerte
     t.piece_start = x.pos;
 }
 
+template <Side S>
 template <typename PathOf>
-void LightPaths::collect(size_t slots, PathOf &&path_of) {
+void Subpaths<S>::collect(size_t slots, PathOf &&path_of) {
     for (size_t k = 0; k < slots; ++k) {
         if (slot_has_segment_[k]) segments_.push_back(slot_segment_[k]);
         if (slot_has_vertex_[k]) {
@@ -421,8 +434,12 @@ void LightPaths::collect(size_t slots, PathOf &&path_of) {
     check_capacity();
 }
 
-size_t LightPaths::next_rays(const RayBuffers &out) {
+template <Side S>
+size_t Subpaths<S>::next_rays(const RayBuffers &out) {
     return write_alive_rays(active_, paths_, out, threads_);
 }
+
+template class Subpaths<Side::Light>;
+template class Subpaths<Side::Camera>;
 
 }  // namespace pgi

@@ -1,25 +1,29 @@
-// Light paths shared by the light-side methods (lt, pm, sppm, ppb, and the bidirectional and
-// virtual-light methods to come): a kernel that traces N light paths per iteration and records
-// their scattering vertices and their straight segments inside media (path_records.h).
+// Subpaths: the kernels that trace N paths per iteration from the lights (LightPaths: lt, pm,
+// sppm, ppb, bdpt and the virtual-light methods) or from the camera (CameraPaths: bdpt), and
+// record their scattering vertices and their straight segments inside media (path_records.h).
 //   Veach 1997, "Robust Monte Carlo methods for light transport simulation",
-//     ch. 5 (adjoint BSDFs) and ch. 10 (particle tracing);
+//     ch. 5 (adjoint BSDFs) and ch. 10 (particle tracing, bidirectional path tracing);
 //   Jensen 2001, "Realistic Image Synthesis Using Photon Mapping" (emission, photon power).
 //
 // API (stable; other methods build on it)
 // ---------------------------------------
 //   LightPaths(scene, max_depth, rr_depth, seed, paths_per_iteration, threads, max_records)
-//       paths start in the medium the scene says each light emits into
-//       (Scene::set_emission_media)
+//   CameraPaths(scene, max_depth, rr_depth, seed, spp_per_iteration, threads, max_records):
+//       paths_per_iteration = spp_per_iteration camera samples per pixel (path i: pixel
+//       i % pixels, as camera_path.h's start_camera_sample)
 //   set_recording(vertices, segments, complete)  what to record (default: vertices where a
 //       camera path can connect or gather, and segments); `complete` records every vertex,
-//       the lights' own and delta ones included, with their densities (path_records.h)
+//       the lights' own and the camera's, delta ones included, with their densities
+//       (path_records.h, densities.h). Camera paths always record complete subpaths.
+//   Each light emits into the medium the scene decided for it (Scene::set_emission_media).
 //   One iteration is the protocol of passes.h, run by renderer/wavefront.py:
-//     begin(i)          emission sampling for every path
+//     begin(i)          emission (or a camera sample) for every path
 //     next_rays(rays)   extension rays of the paths still alive
 //     shade(hits)       medium free flight, surface or medium scattering, recording of vertices
 //                       and segments, Russian roulette
 //   Then read vertices() and segments(): records of this iteration only, in a fixed order
-//   (bounce by bounce, path index ascending within a bounce) whatever the thread count.
+//   (bounce by bounce, path index ascending within a bounce, so each path's vertices come in
+//   the order of their depth) whatever the thread count.
 //
 // Units: a light vertex's `throughput` is its power, a flux weight. For any function g of a
 // vertex,
@@ -57,45 +61,31 @@
 // it makes a vertex of depth + 1. Null boundaries and null collisions are free.
 // Adjoint transport: refraction is sampled with `radiance = false` (no 1/eta^2
 // scaling of importance). Normals are flat, so no shading-normal correction.
+// Camera paths carry radiance: refraction scales their throughput by 1/eta^2 and roulette
+// takes eta^2 back (as pt's); a camera vertex's throughput is the path's weight for its pixel
+// sample (1 at the camera: a box-filtered pinhole samples each pixel as its importance does).
 #pragma once
 
 #include <memory>
 #include <vector>
 
+#include "camera_path.h"
+#include "densities.h"
 #include "passes.h"
 #include "path_records.h"
 
 namespace pgi {
 
-// What a vertex of a complete subpath keeps for the densities of its neighbours
-// (path_records.h): the density of the next vertex needs how the direction on was sampled,
-// and the reverse density of the vertex before needs the direction back and that vertex. Every
-// direction and cosine is taken from the recorded positions (the rays leaving surfaces start
-// offset off them), so that densities are functions of the recorded path.
-struct DensityVertex {
-    enum class Sampling : uint8_t { Stored, Cosine, Phase, Dielectric };
-    Vec3 pos;
-    Vec3 normal;              // its surface's normal (zero in a medium, at point and
-                              // directional lights)
-    Vec3 wi;                  // unit, towards the vertex before it (zero at a light)
-    double pdf_dir = 0;       // Stored: the density of the direction sampled there (a mirror's
-                              // 1, a point or spot light's, a directional light's disk's area
-                              // density); Dielectric: the interface's ior (the discrete
-                              // probability of reflection or refraction follows the directions)
-    double sigma = 0;         // its extinction, if it lies in a medium
-    double tau_in = 0;        // stand-in optical depth of the edge from the vertex before
-    int64_t record = -1;      // its index in the vertices of this iteration (-1: none yet)
-    int32_t medium = -1;      // Phase: the medium whose phase function sampled
-    Sampling sampling = Sampling::Stored;  // Cosine: about `normal` (diffuse, area lights)
-    bool at_infinity = false; // a directional light's: parallel rays, no 1 / distance^2
-    bool delta_light = false; // a light's delta position or direction: never sampled back
-};
+// Which end of the scene a kernel's paths start from.
+enum class Side : uint8_t { Light, Camera };
 
-struct LightPathState {
+struct SubpathState {
     Vec3 pos, dir;
     double lead = 0;  // medium behind pos (start_path_at)
-    RGB power{0.0};
-    double inv_initial = 1;  // 1 / max component of the emitted power (Russian roulette)
+    RGB power{0.0};   // the path's weight: a light path's flux, a camera path's throughput
+    double inv_initial = 1;  // Russian roulette: 1 / max component of the emitted power
+    double eta2 = 1;         // camera paths: product of squared IOR ratios crossed (roulette)
+    int64_t pixel = 0;       // camera paths: the pixel sampled
     int medium = -1;
     int depth = 0;
     int null_crossings = 0;
@@ -131,10 +121,12 @@ struct EmissionSample {
 };
 EmissionSample sample_emission(const Scene &scene, const double u[6]);
 
-class LightPaths : public SingleLane<LightPaths>, public NoShadowRays {
+template <Side S>
+class Subpaths : public SingleLane<Subpaths<S>>, public NoShadowRays {
 public:
-    LightPaths(std::shared_ptr<const Scene> scene, int max_depth, int rr_depth, uint64_t seed,
-               int64_t paths_per_iteration, int threads, int64_t max_records);
+    // paths_per_iteration: light paths; for camera paths, samples per pixel (times the pixels).
+    Subpaths(std::shared_ptr<const Scene> scene, int max_depth, int rr_depth, uint64_t seed,
+             int64_t paths_per_iteration, int threads, int64_t max_records);
 
     size_t capacity() const { return paths_.size(); }
     int64_t paths_per_iteration() const { return int64_t(paths_.size()); }
@@ -157,26 +149,28 @@ public:
     uint64_t paths_traced() const { return paths_traced_; }
 
     // Record only what a method needs (defaults: connectible vertices and segments), or
-    // complete subpaths with their densities (path_records.h).
+    // complete subpaths with their densities (path_records.h). Camera paths are always
+    // complete (there is nothing else to record of them).
     void set_recording(bool vertices, bool segments, bool complete = false) {
-        record_vertices_ = vertices || complete;
+        record_vertices_ = vertices || complete || S == Side::Camera;
         record_segments_ = segments;
-        complete_ = complete;
+        complete_ = complete || S == Side::Camera;
     }
     bool complete() const { return complete_; }
 
 private:
-    void emit(LightPathState &p, size_t slot);
-    void scatter_in_medium(LightPathState &p, size_t slot, const Vec3 &x, MediumStats &stats);
-    void scatter_on_surface(LightPathState &p, size_t slot, int tri, const Vec3 &x);
-    bool russian_roulette(LightPathState &p);
-    PathVertex &record_vertex(size_t slot, const LightPathState &p, VertexKind kind, const Vec3 &x, const Vec3 &wi);
+    void emit(SubpathState &p, size_t slot);
+    void start_at_camera(SubpathState &p, size_t slot, int64_t iteration);
+    void scatter_in_medium(SubpathState &p, size_t slot, const Vec3 &x, MediumStats &stats);
+    void scatter_on_surface(SubpathState &p, size_t slot, int tri, const Vec3 &x);
+    bool russian_roulette(SubpathState &p);
+    PathVertex &record_vertex(size_t slot, const SubpathState &p, VertexKind kind, const Vec3 &x, const Vec3 &wi);
     // Complete subpaths: the densities once a new vertex is known (its forward one, and the
     // reverse one of the vertex two back), and its entry among the path's last two vertices.
-    DensityTrack &track(const LightPathState &p) { return tracks_[size_t(&p - paths_.data())]; }
+    DensityTrack &track(const SubpathState &p) { return tracks_[size_t(&p - paths_.data())]; }
     double forward_density(const DensityTrack &t, const DensityVertex &x) const;
     void reverse_density(const DensityTrack &t, const DensityVertex &x);
-    void advance_densities(LightPathState &p, DensityVertex x, PathVertex *record);
+    void advance_densities(SubpathState &p, DensityVertex x, PathVertex *record);
     // Appends the per-slot records in slot order; `path_of(slot)` is the slot's path.
     template <typename PathOf>
     void collect(size_t slots, PathOf &&path_of);
@@ -189,7 +183,7 @@ private:
     int threads_;
     int64_t max_records_;
     int64_t iteration_ = -1;
-    std::vector<LightPathState> paths_;
+    std::vector<SubpathState> paths_;
     std::vector<DensityTrack> tracks_;  // complete subpaths: one per path
     std::vector<int32_t> active_;
     // One optional vertex and segment per active path and pass.
@@ -198,9 +192,13 @@ private:
     std::vector<uint8_t> slot_has_vertex_, slot_has_segment_;
     std::vector<PathVertex> vertices_;
     std::vector<MediumSegment> segments_;
-    bool record_vertices_ = true, record_segments_ = true, complete_ = false;
+    bool record_vertices_ = true, record_segments_ = true, complete_ = S == Side::Camera;
+    int camera_spp_ = 1;  // camera paths: samples per pixel per iteration
     MediumStats stats_;
     uint64_t paths_traced_ = 0;
 };
+
+using LightPaths = Subpaths<Side::Light>;
+using CameraPaths = Subpaths<Side::Camera>;
 
 }  // namespace pgi
