@@ -225,8 +225,12 @@ RGB ProgressivePhotonBeams::gather(BeamGatherPath &p, double t_end, const Bounda
     bvh_.query_pieces(origin, p.dir, t_end, [&](const BeamBvh::Piece &piece) {
         const Beam &b = bvh_.beams()[size_t(piece.beam)];
         if (b.medium != p.medium || !depth_.allows(b.depth + 1 + p.depth)) return;
+        // Lines farther apart than r meet neither kernel: the aligned blur moves the beam by
+        // |u| = distance / (m.b) >= distance to meet the ray (and near-parallel pairs, which
+        // closest_approach refuses, are refused by both).
         BeamHit h;
-        if (closest_approach(piece.origin, piece.dir, origin, p.dir, h) && h.distance < radius && piece.holds(h.t_beam)) {
+        if (!closest_approach(piece.origin, piece.dir, origin, p.dir, h) || !(h.distance < radius)) return;
+        if (piece.holds(h.t_beam)) {
             bool before_exit = zones.exit_start < t_end ? h.t_ray < zones.exit_start : h.t_ray <= t_end;
             if (h.t_ray >= zones.entry_end && before_exit) add(b, h.t_ray, h.t_beam, h.sin_theta);
         }
