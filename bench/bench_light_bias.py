@@ -28,7 +28,7 @@ from renderer.methods.pt import PathTracing
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 from conftest import load_small  # noqa: E402
 from parity import Estimate, iteration_images, ours  # noqa: E402
-from test_light_methods import RES, RUNS, SCENES, mean_radius  # noqa: E402
+from test_light_methods import PARAMS, RES, SCENES, mean_radius  # noqa: E402
 
 
 def deviations(est: Estimate, ref: Estimate, size: int) -> tuple[np.ndarray, np.ndarray]:
@@ -57,7 +57,7 @@ def main() -> None:
         ref = ours(PathTracing, scene, 64, seed=99, spp_per_wave=2048)
         entry = {}
         for method_id in args.methods:
-            params = RUNS[method_id][1]
+            params = PARAMS[method_id]
             method = get_method(method_id)(
                 scene, seed=args.seed, threads=args.threads, params=params
             )

@@ -1,4 +1,4 @@
-"""Every light-side method on every shipped scene it can render, at its default parameters.
+"""Light-side methods on the shipped scenes, at their default parameters.
 
 lt, pm, sppm and ppb against pt, whose agreement with Mitsuba covers every shipped scene
 (test_parity: the box scenes; test_parity_media: fog-perlin, fog-step, smoke, juice;
@@ -18,14 +18,19 @@ pm, sppm and ppb are consistent: their kernels' bias is of order r where a kerne
 edge, a corner or a boundary (docs/methods.md). Their allowance at each scale is c r, with r
 the mean over the run's iterations of the method's widest kernel radius (pm: its fixed radius;
 sppm and ppb: their schedules'), and c measured for each scene, method and scale (BIAS, by
-bench/bench_light_bias.py: 128 iterations at seed 11 against pt at 64 x 2048 spp; c is the
-largest |relative deviation| + 2 standard errors over the cells of that scale, over r): the
-bound holds for the bias of these radii, whatever they are, and grows with them. A radius
-picked small to hide the bias is what the old tests did; these run at the defaults.
+bench/bench_light_bias.py: 256 iterations on cbox and cbox-fog, 128 on the others, at seed 11
+against pt at 64 x 2048 spp; c is the largest |relative deviation| + 2 standard errors over
+the cells of that scale, over r): the bound holds for the bias of these radii, whatever they
+are, and grows with them. A radius picked small to hide the bias is what the old tests did;
+these run at the defaults. The allowances are measured on five scenes so far (MEASURED:
+cbox, cbox-fog, cbox-glass, cbox-grid, crepuscular); fog-perlin, fog-step, juice, smoke,
+volcaustic and cloud are still to be measured and are not checked here yet.
 
-Power: each check fails with 5 % of the light taken from any one quadrant, or moved from one
-quadrant to the opposite one (a blur that keeps the image mean), beyond the allowance of the
-quadrants (parity.assert_multiscale_check_has_power with the loss plus that allowance).
+Power: each check fails with LOSS (5 %) of the light taken from any one quadrant, or moved
+from one quadrant to the opposite one (a blur that keeps the image mean), beyond the allowance
+of the quadrants (parity.assert_multiscale_check_has_power with the loss plus that allowance);
+where the iterations the suite can afford leave a quadrant's standard error above 1 %, the
+loss that case resolves is stated instead (NOISY: 6-10 %).
 """
 
 from __future__ import annotations
@@ -51,27 +56,57 @@ SCENES = [
     "fog-perlin", "fog-step", "juice", "smoke", "volcaustic",
 ]  # fmt: skip
 LT_SCENES = ["cbox", "cbox-fog", "cbox-grid", "fog-perlin", "fog-step", "smoke"]
-# iterations, and method parameters besides the defaults
-RUNS = {
-    "lt": (24, {}),
-    "pm": (48, {"spp_per_iteration": 16}),
-    "sppm": (48, {"spp_per_iteration": 16}),
-    "ppb": (96, {"spp_per_iteration": 16}),
-}
-LOSS = 0.05
+# Method parameters besides the defaults: camera paths only, which change no radius.
+PARAMS = {"lt": {}, "pm": {"spp_per_iteration": 16}, "sppm": {"spp_per_iteration": 16},
+          "ppb": {"spp_per_iteration": 16}}  # fmt: skip
 # c of the allowance c r for (mean, quadrants, blocks), per scene and method (module docstring)
-BIAS: dict[str, dict[str, tuple[float, float, float]]] = {}
+BIAS: dict[str, dict[str, tuple[float, float, float]]] = {
+    "cbox": {"pm": (0.57, 1.37, 2.06), "sppm": (0.6, 1.44, 2.14), "ppb": (0.88, 1.91, 2.65)},
+    "cbox-fog": {"pm": (0.26, 0.67, 1.56), "sppm": (0.26, 0.7, 1.61), "ppb": (0.51, 0.93, 2.24)},
+    "cbox-glass": {"pm": (0.28, 0.98, 1.54), "sppm": (0.28, 0.95, 1.48), "ppb": (1.12, 1.69, 4.17)},
+    "cbox-grid": {"pm": (0.09, 0.24, 0.39), "sppm": (0.13, 0.34, 0.58), "ppb": (1.89, 2.73, 4.06)},
+    "crepuscular": {"pm": (0.12, 0.2, 0.4), "sppm": (0.17, 0.27, 0.56), "ppb": (0.4, 0.51, 0.84)},
+}
+# The scenes whose allowances are measured; the others are still to be (module docstring).
+MEASURED = [name for name in SCENES if name in BIAS]
+# Iterations of each run (pm, sppm, ppb): enough for a quadrant's standard error of about 1 %
+# (with the reference's), where an iteration is cheap; 48 / 48 / 96 where it is not.
+ITERATIONS = {
+    "cbox": (192, 192, 768),
+    "cbox-fog": (48, 48, 96),
+    "cbox-glass": (48, 48, 96),
+    "cbox-grid": (48, 48, 96),
+    "crepuscular": (384, 384, 384),
+}
+LT_ITERATIONS = 24
+# The loss in one quadrant (or moved between two) that each check must catch beyond the
+# quadrants' allowance: 5 %, or what that case's noise resolves (5.5 standard errors of a
+# quadrant, from the runs that measured BIAS, rounded up to a percent).
+LOSS = 0.05
+NOISY = {
+    ("cbox", "pm"): 0.06, ("cbox", "sppm"): 0.06,
+    ("cbox-fog", "pm"): 0.06, ("cbox-fog", "sppm"): 0.06,
+    ("cbox-glass", "pm"): 0.08, ("cbox-glass", "sppm"): 0.08, ("cbox-glass", "ppb"): 0.06,
+    ("cbox-grid", "pm"): 0.10, ("cbox-grid", "sppm"): 0.10, ("cbox-grid", "ppb"): 0.09,
+    ("crepuscular", "ppb"): 0.06,
+}  # fmt: skip
 
 _references: dict[str, Estimate] = {}
 
 
 def reference(name: str) -> Estimate:
-    """pt's image of the scene: 16 images of 256 spp."""
+    """pt's image of the scene: 32 images of 1024 spp."""
     if name not in _references:
         _references[name] = ours(
-            PathTracing, load_small(name, RES, RES), 16, seed=99, spp_per_wave=256
+            PathTracing, load_small(name, RES, RES), 32, seed=99, spp_per_wave=1024
         )
     return _references[name]
+
+
+def iterations(name: str, method_id: str) -> int:
+    if method_id == "lt":
+        return LT_ITERATIONS
+    return ITERATIONS.get(name, (48, 48, 96))[["pm", "sppm", "ppb"].index(method_id)]
 
 
 def mean_radius(method, iterations: int) -> float:
@@ -92,12 +127,13 @@ def mean_radius(method, iterations: int) -> float:
 
 
 def run(name: str, method_id: str) -> tuple[Estimate, Scales]:
-    iterations, params = RUNS[method_id]
+    n = iterations(name, method_id)
+    params = PARAMS[method_id]
     method = get_method(method_id)(load_small(name, RES, RES), seed=3, threads=2, params=params)
-    est = Estimate(iteration_images(method, iterations))
+    est = Estimate(iteration_images(method, n))
     if method_id == "lt":
         return est, Scales()
-    r = mean_radius(method, iterations)
+    r = mean_radius(method, n)
     c = BIAS[name][method_id]
     return est, Scales(*(ci * r for ci in c))
 
@@ -109,8 +145,9 @@ def check(name: str, method_id: str) -> None:
     ratio = est.mean.mean() / ref.mean.mean()
     print(f"{name} {method_id}: mean {ratio - 1:+.2%}, allowance {allowance}; {detail}")
     assert agrees, f"{name} {method_id}: allowance {allowance}: {detail}"
+    loss = NOISY.get((name, method_id), LOSS)
     assert_multiscale_check_has_power(
-        est, ref, f"{name} {method_id}", LOSS + allowance.quadrants, allowance
+        est, ref, f"{name} {method_id}", loss + allowance.quadrants, allowance
     )
 
 
@@ -122,18 +159,18 @@ class TestLt:
 
 
 class TestPm:
-    @pytest.mark.parametrize("name", SCENES)
+    @pytest.mark.parametrize("name", MEASURED)
     def test_agrees_with_pt(self, name):
         check(name, "pm")
 
 
 class TestSppm:
-    @pytest.mark.parametrize("name", SCENES)
+    @pytest.mark.parametrize("name", MEASURED)
     def test_agrees_with_pt(self, name):
         check(name, "sppm")
 
 
 class TestPpb:
-    @pytest.mark.parametrize("name", SCENES)
+    @pytest.mark.parametrize("name", MEASURED)
     def test_agrees_with_pt(self, name):
         check(name, "ppb")
