@@ -3,7 +3,9 @@
 Images are a smooth per-scene pattern plus Gaussian noise whose variance falls as 1/time
 (1/spp for references), so the workflow sees converging methods. Writes EXR + JSON sidecars
 like `pgi render --snapshots` (contracts.md). Methods: the ``FAKE_PGI_METHODS`` environment
-variable (comma separated), default "pt,lt,sppm".
+variable (comma separated), default "pt,lt,sppm". Mitsuba's references of the scenes named in
+``FAKE_PGI_DEAD_SCENES`` (comma separated) are black, as Mitsuba's are in dense, white media;
+references by the ``pgi`` source are never.
 """
 
 from __future__ import annotations
@@ -69,6 +71,9 @@ def main(argv: list[str]) -> int:
     f.add_argument("--seed", type=int, default=0)
     f.add_argument("--threads", type=int, default=1)
     f.add_argument("--set", action="append", default=[])
+    f.add_argument("--source", default="mitsuba")
+    f.add_argument("--store")
+    f.add_argument("--check", type=float, default=10.0)
     f.add_argument("-o", required=True)
     a = ap.parse_args(argv)
     methods = os.environ.get("FAKE_PGI_METHODS", "pt,lt,sppm").split(",")
@@ -87,11 +92,20 @@ def main(argv: list[str]) -> int:
         return 2
     t = truth(scene)
     out = Path(a.o)
-    if a.cmd == "reference":
-        rng = np.random.default_rng(a.seed)
-        img = t + 0.3 / np.sqrt(a.spp) * t * rng.standard_normal(t.shape)
-        side = {"method": "mitsuba-reference", "spp": a.spp, "seed": a.seed, "scene": scene}
+    if a.cmd == "reference":  # noise of variance (0.3 t)^2 / spp; no store is kept
+        rng = np.random.default_rng(a.seed + (7919 if a.source == "pgi" else 0))
+        sd = 0.3 / np.sqrt(a.spp) * t
+        img = t + sd * rng.standard_normal(t.shape)
+        dead = os.environ.get("FAKE_PGI_DEAD_SCENES", "").split(",")
+        if a.source == "mitsuba" and scene in dead:
+            img = np.zeros_like(img)
+        side = {"method": "mitsuba-reference", "spp": a.spp, "seed": a.seed, "scene": scene,
+                "renderer": f"fake {a.source}", "source": a.source, "passes": 8,
+                "seconds_per_spp": 0.001, "render_seconds": 0.001 * a.spp,
+                "variance": f"{out.stem}.var.exr"}  # fmt: skip
         write(out, np.maximum(img, 0), side)
+        write(out.with_name(f"{out.stem}.var.exr"), sd * sd, {})
+        out.with_name(f"{out.stem}.var.json").unlink()  # a variance has no sidecar
         return 0
     if a.method not in methods:
         print(f"pgi: error: unknown method {a.method}", file=sys.stderr)

@@ -19,6 +19,10 @@ SCRIPTS = (
     "bench_light_methods",
     "bench_slab",
     "bench_defaults",
+    "bench_vpl",
+    "bench_bdpt",
+    "bench_roulette",
+    "bench_vrl",
 )
 sys.path.insert(0, str(BENCH))
 
@@ -59,6 +63,13 @@ def test_every_option_is_explained(script):
         ("bench_light_methods", ["--size", "0"], "expected an integer >= 1"),
         ("bench_slab", ["--width", "2"], "--width must be at least 4"),
         ("bench_defaults", ["--methods", "nosuch"], "unknown method(s) ['nosuch']"),
+        ("bench_vpl", ["--budgets", "1", "nan"], "expected a finite number of seconds > 0"),
+        ("bench_vpl", ["--set", "clamp=none"], "expected method.KEY=VALUE"),
+        ("bench_bdpt", ["--seconds", "0"], "expected a finite number of seconds > 0"),
+        ("bench_roulette", ["--seeds", "0"], "expected an integer >= 1"),
+        ("bench_roulette", ["--threads", "64"], "--threads 64 asked for"),
+        ("bench_vrl", ["--methods", "vrl-none"], "invalid choice: 'vrl-none'"),
+        ("bench_vrl", ["--budgets", "0"], "expected a finite number of seconds > 0"),
     ],
 )
 def test_a_bad_option_is_one_line_before_any_work(script, args, message):

@@ -29,7 +29,8 @@ def test_defaults_filled_in() -> None:
     cfg = copy.deepcopy(GOOD)
     validate(cfg, SCHEMA)
     assert cfg["threads"] == 2 and cfg["primary_metric"] == "relmse"
-    assert cfg["ref_quality_factor"] == 10 and cfg["reports_dir"] == "reports"
+    assert cfg["determined_fraction"] == 0.2 and cfg["reports_dir"] == "reports"
+    assert cfg["reference"]["spp"] == "auto" and cfg["reference"]["max_seconds"] == 120
 
 
 @pytest.mark.parametrize(
@@ -44,6 +45,9 @@ def test_defaults_filled_in() -> None:
         ({"budget": [1]}, r"Additional properties are not allowed \('budget' was unexpected\)"),
         ({"scenes": [{"nam": "x"}]}, r"not valid under any of the given schemas"),
         ({"reference": {"spp": 0}}, r"0 is less than the minimum of 1"),
+        ({"reference": {"spp": "many"}}, r"'many' does not match '\^auto\$'"),
+        ({"reference": {"max_seconds": 0}}, r"0 is less than or equal to the minimum of 0"),
+        ({"ref_quality_factor": 10}, r"'ref_quality_factor' was unexpected"),
     ],
 )
 def test_bad_config_rejected(change: dict, expect: str) -> None:
@@ -402,7 +406,8 @@ def test_plan_records_the_code_fingerprints_and_refuses_a_pgi_without_them(tmp_p
         # pgi names snapshots with 6 significant digits: 1e6 is "1e+06", never "1000000"
         ({"budgets": [1, 0.1234567]}, r"budgets: 0.1234567 has more than the 6 significant"),
         ({"budgets": [1000000, 1000001]}, r"budgets: two budgets have the same file tag"),
-        ({"ref_quality_factor": float("nan")}, r"ref_quality_factor: expected a finite number"),
+        ({"determined_fraction": float("nan")}, r"determined_fraction: expected a finite number"),
+        ({"reference": {"target": float("inf")}}, r"reference.target: expected a finite number"),
         (
             {"results_dir": "README.md/r"},
             r"results_dir: .*README.md/r cannot be made: .* is a file",

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from conftest import load_small
-from parity import ALPHA, Estimate, agreement, mitsuba, ours
+from parity import ALPHA, Estimate, agreement, mitsuba, ours, same_image_coarse_and_fine
 from renderer.engine import build_native_scene
 from renderer.errors import PgiError
 from renderer.methods.lt import LightTracing
@@ -48,10 +48,7 @@ def _agrees(a, b) -> tuple[bool, str]:
     """Image mean; 8x8 blocks (chi-square: their means are close to normal even in fog,
     where 4x4 blocks of 32 images still have heavy tails that inflate it); 4x4 blocks by
     the Bonferroni bound on |z|."""
-    mean = agreement(a.image_mean(), b.image_mean(), ALPHA)
-    coarse = agreement(a.blocks(8), b.blocks(8), ALPHA)
-    fine = agreement(a.blocks(4), b.blocks(4), ALPHA)
-    return mean.z_ok and coarse.passes and fine.z_ok, f"mean {mean}; 8x8 {coarse}; 4x4 {fine}"
+    return same_image_coarse_and_fine(a, b, ALPHA)
 
 
 def _check(a, b, label: str) -> None:

@@ -45,6 +45,13 @@ BAD = [
     ("pm", "volume_radius_neighbours", 0, INT_1),
     ("sppm", "surface_radius_neighbours", 2.5, INT_1),
     ("ppb", "beam_radius_neighbours", -3, INT_1),
+    ("vpl", "light_paths", 0, INT_1),
+    ("vpl", "spp_per_iteration", 1.5, INT_1),
+    ("vpl", "share_lights", "yes", "true or false"),
+    ("vpl", "clamp_distance_world", 0, "a number >= 1.73205e-09 and <= 3.4641"),
+    ("vsl", "max_records", 0, INT_1),
+    ("vsl", "free_flight_fraction", -0.5, "a number >= 0 and < 1"),
+    ("vsl", "sphere_radius_world", float("inf"), "a number >= 1.73205e-09 and <= 3.4641"),
 ]
 
 
@@ -157,6 +164,8 @@ def test_old_parameter_names_still_work_with_a_warning(method, old, value, new, 
         ("ppb", "spp_per_iteration", 100_000),
         ("lt", "light_paths", 10**8),
         ("mitsuba", "spp_per_iteration", 500_000),  # one LLVM wavefront holds them all
+        ("vpl", "light_paths", 10**8),
+        ("vsl", "spp_per_iteration", 100_000),
     ],
 )
 def test_batches_beyond_half_the_memory_are_refused_before_any_work(

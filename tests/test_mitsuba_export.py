@@ -20,10 +20,11 @@ from renderer.scene import load_scene
 from renderer.scene.loader import find_scene_file
 from renderer.scene.mitsuba_export import (
     check_mitsuba_scale,
+    grey_channel_scenes,
     grid_data,
+    has_chromatic_extinction,
     load_mitsuba_scene,
     phase_dict,
-    reference_integrator,
     to_mitsuba_dict,
 )
 from renderer.scene.model import Phase
@@ -212,28 +213,44 @@ def test_tiny_reference_is_finite():
     assert info["passes"] == 1 and info["threads"] == 1
 
 
-def test_references_of_chromatic_media_use_volpathmis():
-    """Grey extinction: volpath. A medium whose extinction differs between channels (juice's):
-    volpathmis, whose renders of it agree with ours where volpath's do not (test_parity)."""
-    assert reference_integrator(load_scene("cbox-fog")) == "volpath"
-    assert reference_integrator(load_scene("cbox")) == "volpath"
-    assert reference_integrator(load_scene("juice")) == "volpathmis"
+def test_references_of_chromatic_media_are_three_grey_renders():
+    """Grey extinction: one render. A medium whose extinction differs between channels
+    (juice's): three scenes whose media take one channel's extinction and albedo in every
+    channel, and the reference's channel c is channel c of render c (same seed)."""
+    assert not has_chromatic_extinction(load_scene("cbox-fog"))
+    assert has_chromatic_extinction(load_scene("juice"))
     scene = load_scene(
-        "cbox-fog", ["film.width=4", "film.height=4", "media.fog.sigma_t=[0.5, 1, 1]"]
+        "cbox-fog",
+        [
+            "film.width=4",
+            "film.height=4",
+            "media.fog.sigma_t=[0.5, 1, 2]",
+            "media.fog.albedo=[0.9, 0.6, 0.3]",
+        ],
     )
-    assert to_mitsuba_dict(scene, "volpathmis")["integrator"]["type"] == "volpathmis"
-    _, info = render_reference(scene, spp=2, seed=0, threads=1)
-    assert info["renderer"].endswith(" volpathmis")
+    greys = grey_channel_scenes(scene)
+    assert [g.media["fog"].sigma_t for g in greys] == [(0.5,) * 3, (1.0,) * 3, (2.0,) * 3]
+    assert [g.media["fog"].albedo for g in greys] == [(0.9,) * 3, (0.6,) * 3, (0.3,) * 3]
+    assert all(g.shapes is scene.shapes and g.lights is scene.lights for g in greys)
+    image, info = render_reference(scene, spp=2, seed=0, threads=1)
+    assert info["renderer"].endswith(" volpath (one grey render per channel)")
+    for c, grey in enumerate(greys):
+        alone, _ = render_reference(grey, spp=2, seed=0, threads=1)
+        assert np.array_equal(image[..., c], alone[..., c])
 
 
 def test_extinction_zero_in_some_channels_is_refused_for_mitsuba():
     """Neither Mitsuba integrator renders it (volpath: NaN; volpathmis: 14 % of our blue), so
-    the export refuses it by its key; a small positive value in its place is accepted."""
+    the export refuses it by its key; a small positive value in its place is accepted. A
+    reference renders it as grey scenes, one of zero extinction (docs/methods.md)."""
     zero = load_scene("cbox-fog", ["media.fog.sigma_t=[0, 1, 3]"])
     with pytest.raises(PgiError, match=r"media\.fog\.sigma_t = \[0\.0, 1\.0, 3\.0\].*1e-7"):
         to_mitsuba_dict(zero)
     to_mitsuba_dict(load_scene("cbox-fog", ["media.fog.sigma_t=[1e-7, 1, 3]"]))
     to_mitsuba_dict(load_scene("cbox-fog", ["media.fog.sigma_t=0"]))
+    small = load_scene("cbox-fog", ["media.fog.sigma_t=[0, 1, 3]", "film.width=4", "film.height=4"])
+    image, _ = render_reference(small, spp=2, seed=0, threads=1)
+    assert np.all(np.isfinite(image)) and image.mean() > 0
 
 
 def test_hg_beyond_mitsubas_precision_is_refused_for_mitsuba():

@@ -30,8 +30,9 @@ def test_loading_runs_the_render_kernel_once() -> None:
 
 
 def test_it_renders_with_volpath_and_says_so() -> None:
-    """What a user would run, volpath, also where the references take volpathmis (extinction
-    that differs between channels): the sidecar names it, as the reference's does."""
+    """What a user would run, volpath, also where the references render one grey scene per
+    channel (extinction that differs between channels): the sidecar names it, as the
+    reference's does."""
     scene = load_scene(
         "cbox-fog", ["film.width=8", "film.height=8", "media.fog.sigma_t=[0.2, 1, 3]"]
     )

@@ -5,9 +5,9 @@ juice (medium inside a dielectric mesh) rendered by our pt with integrator.estim
 ratio and residual must agree with Mitsuba within measured noise (two-sample z-scores
 of 4x4-block means and of the image mean, Bonferroni/chi-square as tests/parity.py). The biased
 ray-marching estimator is not asserted here; bench/bench_media.py measures its bias. juice has
-a homogeneous medium only (closed forms), so one estimator covers it. Mitsuba's integrator is
-the references' (renderer.scene.mitsuba_export.reference_integrator): volpath, or volpathmis
-where extinction differs between colour channels (juice).
+a homogeneous medium only (closed forms), so one estimator covers it. Mitsuba renders as
+the references do (renderer.reference.load_reference_scenes): volpath, one grey render per
+channel where extinction differs between colour channels (juice).
 
 Power: the sample counts are sized so that our images scaled by 0.97 fail the image-mean
 check in every case (test_*_bias_fails), except the point light inside a grid, where paths
@@ -35,7 +35,6 @@ from parity import (
 )
 from renderer.methods.pt import PathTracing
 from renderer.scene import load_scene
-from renderer.scene.mitsuba_export import reference_integrator
 
 RES = 16
 # Independent images x spp each, for both renderers. The per-image spp must be high enough for
@@ -65,9 +64,7 @@ def estimates(request):
     name, estimator = request.param
     scene = load_small(name, RES, RES, (f"integrator.estimator={estimator}",))
     if name not in _mitsuba_cache:
-        _mitsuba_cache[name] = mitsuba(
-            scene, IMAGES, SPP[name], integrator=reference_integrator(scene)
-        )
+        _mitsuba_cache[name] = mitsuba(scene, IMAGES, SPP[name])
     mine = ours(PathTracing, scene, IMAGES, spp_per_wave=SPP[name])
     return f"{name}/{estimator}", mine, _mitsuba_cache[name]
 
@@ -168,7 +165,7 @@ def config_estimates(request, tmp_path_factory):
         scene = load_scene(path, [f"film.width={RES}", f"film.height={RES}", *overrides])
     else:
         scene = load_small(base, RES, RES, overrides)
-    theirs = mitsuba(scene, IMAGES, spp, integrator=reference_integrator(scene))
+    theirs = mitsuba(scene, IMAGES, spp)
     return name, ours(PathTracing, scene, IMAGES, spp_per_wave=spp), theirs
 
 

@@ -18,6 +18,7 @@ from compare.report.browser_check import check_page, find_chromium
 from compare.report.build import build_index, build_scene_page
 from compare.runs import compare_run, merge_reference
 from renderer.imageio import read_exr, write_exr, write_json
+from renderer.known_methods import NOT_YET_IMPLEMENTED
 
 needs_chromium = pytest.mark.skipif(find_chromium() is None, reason="no chromium")
 
@@ -340,21 +341,24 @@ def report(tmp_path_factory: pytest.TempPathFactory) -> Path:
     scene_file = wd / "scene.yaml"  # only its self-description is read
     scene_file.write_text(
         "description: A toy scene for the report test.\n"
-        "stresses: [direct light]\nexpected_winners: [pt, sppm, vrl]\n"
+        "stresses: [direct light]\nexpected_winners: [pt, sppm, upbp]\n"
     )
-    build_scene_page(
-        {
-            **common,
-            "scene": "toy",
-            "scene_file": str(scene_file),
-            "ref": str(wd / "ref.exr"),
-            "ref_json": str(wd / "ref.json"),
-            "seed": 1,
-            "budgets": budgets,
-            "snapshots": snaps,
-            "viewer_max_size": 512,
-        }
-    )
+    # every method of the study's table is implemented: a planned one stands in for the next
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setitem(NOT_YET_IMPLEMENTED, "upbp", "unified points, beams and paths")
+        build_scene_page(
+            {
+                **common,
+                "scene": "toy",
+                "scene_file": str(scene_file),
+                "ref": str(wd / "ref.exr"),
+                "ref_json": str(wd / "ref.json"),
+                "seed": 1,
+                "budgets": budgets,
+                "snapshots": snaps,
+                "viewer_max_size": 512,
+            }
+        )
     build_index({**common, "refs": {"toy": str(wd / "ref.json")}})
     return rep
 
@@ -412,7 +416,7 @@ def test_report_files(report: Path) -> None:
     assert "<svg" in index and 'href="scene-toy.html"' in index
     assert "Reference error removed" in index and "ref. error removed" in page
     assert 'id="viewer"' in page and 'src="data/toy.js"' in page
-    assert "A toy scene for the report test." in page and "vrl (not implemented yet)" in page
+    assert "A toy scene for the report test." in page and "upbp (not implemented yet)" in page
     # tables name their columns as a reader would: no identifiers
     assert "<th>speed-up vs pt</th>" in page and "<th>time [s]</th>" in page
     assert "speedup_vs" not in page and "<th>one_minus_ssim</th>" not in page
@@ -484,18 +488,21 @@ def test_the_viewer_states_the_full_size_mean_in_the_browser(downsampled_page: P
     assert said and float(said[1]) == pytest.approx(full, rel=5e-3), shown
 
 
-def test_a_variant_counts_as_its_method_among_the_expected_winners(report: Path) -> None:
+def test_a_variant_counts_as_its_method_among_the_expected_winners(
+    report: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """A study of pt-delta (a variant of pt) and lt: pt is in the study, and a win of
     pt-delta is a win of pt."""
     from compare.report.build import _about_scene
 
     summary = pd.read_csv(report / "tables" / "summary.csv")
     summary["method"] = summary.method.replace({"pt": "pt-delta"})
+    monkeypatch.setitem(NOT_YET_IMPLEMENTED, "upbp", "unified points, beams and paths")
     scene_file = report.parent / "scene.yaml"
     text = _about_scene(
         str(scene_file), "toy", summary, "relmse", ["pt-delta", "lt"], {"pt-delta": "pt"}
     )
-    expected = "pt, sppm (not in this study), vrl (not implemented yet)"
+    expected = "pt, sppm (not in this study), upbp (not implemented yet)"
     assert f"<b>Expected to win:</b> {expected}." in text
     won = r"<b>Won</b> at [^:]+: (pt-delta \(as expected|lt \(not among the expected)"
     assert re.search(won, text)
@@ -613,16 +620,31 @@ def test_methods_welchs_test_on_log_errors_cannot_separate_from_the_best_are_tie
 # Each of these caught a bug injected into a copy of the code that the tests above let pass.
 
 
-def test_compare_run_uses_the_configured_reference_factor(tmp_path: Path) -> None:
-    write_exr(tmp_path / "ref.exr", np.ones((4, 4, 3)))
-    write_json(tmp_path / "ref.json", {"ref_relmse": 0.001, "ref_mse": 0.001})
-    write_exr(tmp_path / "run.t1.exr", np.full((4, 4, 3), 1.5))  # relMSE 0.25 / 1.01: 247x
+def test_compare_run_removes_the_reference_error_of_the_halves_ref_json_names(
+    tmp_path: Path,
+) -> None:
+    """Each row has the MSE-type errors measured and corrected: the corrected MSE and relMSE
+    are the measured ones less the reference's own (the estimator's identity), with
+    uncertainties from the halves named in ref.json, relative to its folder, so that a
+    results folder read from elsewhere still finds them."""
+    rng = np.random.default_rng(2)
+    truth = rng.uniform(0.2, 2.0, (16, 16, 3))
+    for h in (0, 1):
+        write_exr(
+            tmp_path / "ref" / f"half{h}.exr", truth + 0.05 * rng.standard_normal(truth.shape)
+        )
+    ref = tmp_path / "ref"
+    merge_reference(ref / "half0.exr", ref / "half1.exr", ref / "ref.exr", ref / "ref.json")
+    write_exr(tmp_path / "run.t1.exr", truth * 1.1)
     write_json(tmp_path / "run.t1.json", {"render_seconds": 1.0, "threads": 2})
-    args = ([tmp_path / "run.t1.exr"], [1.0], tmp_path / "ref.exr", tmp_path / "ref.json")
-    kw = dict(scene="s", method="pt", seed=1, threads=2)
-    assert compare_run(*args, tmp_path / "a.csv", **kw).ref_ok.tolist() == [True]
-    strict = compare_run(*args, tmp_path / "b.csv", **kw, ref_quality_factor=1000)
-    assert strict.ref_ok.tolist() == [False]
+    args = ([tmp_path / "run.t1.exr"], [1.0], ref / "ref.exr", ref / "ref.json")
+    row = compare_run(*args, tmp_path / "a.csv", scene="s", method="pt", seed=1, threads=2)
+    row = row.iloc[0]
+    assert row.mse_corrected == pytest.approx(row.mse - row.ref_mse, rel=1e-6)  # ref.exr is float32
+    assert row.relmse_corrected == pytest.approx(row.relmse - row.ref_relmse, rel=1e-6)
+    assert row.rmse_corrected == pytest.approx(row.mse_corrected**0.5)
+    assert 0 < row.relmse_u_shared < row.relmse_u < 0.1 * row.relmse_corrected
+    assert "mape_corrected" not in row and "flip_corrected" not in row  # not squared errors
 
 
 def _summary(rows: list[tuple[str, float, float, int]]) -> pd.DataFrame:
@@ -640,12 +662,32 @@ def test_a_method_with_one_seed_can_win() -> None:
     assert best.method.tolist() == ["pm"] and best.tied_with.tolist() == [""]
 
 
-def test_one_flagged_seed_flags_its_cell() -> None:
+def test_a_cell_is_flagged_unless_the_reference_determines_its_corrected_mean() -> None:
+    """A cell's flag is its corrected mean's: determined when that mean is positive and its
+    reference uncertainty (2 standard uncertainties: each seed's own part averaged, the
+    shared part once) is within the fraction of it."""
     runs = _runs()
-    runs["ref_ok"] = True
-    runs.loc[(runs.method == "pt") & (runs.budget == 1.0) & (runs.seed == 1), "ref_ok"] = False
+    runs["relmse_corrected"] = runs.relmse
+    runs["relmse_u"] = 0.05 * runs.relmse  # 2u = 10 % of the error: determined within 20 %
+    runs["relmse_u_shared"] = 0.03 * runs.relmse
+    pt1 = (runs.method == "pt") & (runs.budget == 1.0)
+    runs.loc[pt1 & (runs.seed == 1), "relmse_u"] = 0.5  # one seed's own part dominates
     s = T.summarize(runs).set_index(["method", "budget"])
-    assert not s.loc[("pt", 1.0), "ref_ok"] and s.loc[("pt", 2.0), "ref_ok"]
+    cell = runs[pt1]
+    own = np.sqrt(cell.relmse_u**2 - cell.relmse_u_shared**2).mean()
+    assert s.loc[("pt", 1.0), "relmse_u"] == pytest.approx(
+        np.hypot(own, cell.relmse_u_shared.mean())
+    )
+    assert not s.loc[("pt", 1.0), "determined"] and s.loc[("pt", 2.0), "determined"]
+    assert (
+        not T.summarize(runs, determined_fraction=0.05)
+        .set_index(["method", "budget"])
+        .loc[("pt", 2.0), "determined"]
+    )
+    runs.loc[pt1, "relmse_corrected"] = -0.01  # below what the reference resolves
+    assert not T.summarize(runs).set_index(["method", "budget"]).loc[("pt", 1.0), "determined"]
+    md = T.overview_markdown(s.reset_index(), "relmse")
+    assert "⚠ (ref. ±" in md and "measured 1.15" in md
 
 
 def test_slopes_are_fitted_on_render_time_not_on_the_budget() -> None:
@@ -874,7 +916,7 @@ def test_index_says_what_the_methods_are_and_flags_a_target_near_the_reference(
     note = _methods_note(["pt", "pt-ratio", "mitsuba"], {"pt-ratio": "pt"})
     assert note.count("<b>pt</b>: volumetric path tracing") == 1 and "pt-ratio" not in note
     assert "<b>mitsuba</b>: Mitsuba 3 volpath" in note and "against the pgi methods" in note
-    assert "volpathmis" in note and "Mitsuba's too" not in _methods_note(["pt"], {})
+    assert "grey render per channel" in note and "Mitsuba's too" not in _methods_note(["pt"], {})
     tables = tmp_path / "tables"
     tables.mkdir()
     for csv in (report / "tables").glob("*.csv"):
@@ -888,7 +930,7 @@ def test_index_says_what_the_methods_are_and_flags_a_target_near_the_reference(
     flag = '<th class="scene">toy <span class="flag" title="the target is a flagged cell'
     for flagged in (False, True):
         last = (summary.method == "pt") & (summary.budget == summary.budget.max())
-        summary.loc[last, "ref_ok"] = not flagged
+        summary.loc[last, "determined"] = not flagged
         summary.to_csv(tables / "summary.csv", index=False)
         build_index(spec)
         index = (tmp_path / "out" / "index.html").read_text()
@@ -911,3 +953,164 @@ def test_a_cell_that_overran_its_budget_wins_nothing() -> None:
     assert T.best_methods(summary, "relmse").method.tolist() == ["pt"]
     summary["render_seconds_mean"] = 0.84  # all overran: no winner
     assert T.best_methods(summary, "relmse").empty
+
+
+# --------------------------------------------------------------- verdicts on corrected errors
+
+
+def _corrected_summary(rows: list[tuple[str, float, float, int, float, float]]) -> pd.DataFrame:
+    """Cells of one scene and budget: (method, corrected mean, seed std, seeds, reference
+    uncertainty of the mean, its shared part)."""
+    return pd.DataFrame(
+        [
+            {"scene": "s", "budget": 1.0, "method": m, "relmse_mean": mean + 2e-3,
+             "relmse_std": std, "relmse_corrected_mean": mean, "relmse_corrected_std": std,
+             "relmse_u": u, "relmse_u_shared": shared, "n_seeds": n,
+             "render_seconds_mean": 1.0, "determined": True}
+            for m, mean, std, n, u, shared in rows
+        ]
+    )  # fmt: skip
+
+
+def test_the_references_uncertainty_ties_methods_it_cannot_tell_apart() -> None:
+    """pm and sppm 30 % apart, seed spreads of 2-3 %: the seeds tell them apart. Give each
+    corrected mean a reference uncertainty of 20 % and they tie, and the tie is the
+    reference's: the report says so rather than naming a winner. The part shared by both
+    moves them alike: it hardly widens the ratio, and cancels in a difference."""
+    apart = _corrected_summary(
+        [("pm", 1.0e-3, 2e-5, 3, 1e-5, 5e-6), ("sppm", 1.3e-3, 3e-5, 3, 1e-5, 5e-6)]
+    )
+    best = T.best_methods(apart, "relmse")
+    assert best.method.tolist() == ["pm"] and best.tied_with.tolist() == [""]
+    uncertain = _corrected_summary(
+        [("pm", 1.0e-3, 2e-5, 3, 2e-4, 1e-5), ("sppm", 1.3e-3, 3e-5, 3, 2.6e-4, 1e-5)]
+    )
+    best = T.best_methods(uncertain, "relmse")
+    assert best.tied_with.tolist() == ["sppm"] and best.reference_ties.tolist() == ["sppm"]
+    # the same uncertainty shared by both: the ratio barely moves, no tie
+    assert not T.tied(1.0e-3, 2e-5, 3, 1.3e-3, 3e-5, 3, a_u=0, b_u=0, shared_u=2e-4)
+    assert T.tied(1.0e-3, 2e-5, 3, 1.3e-3, 3e-5, 3, a_u=2e-4, b_u=2.6e-4, shared_u=0)
+    # errors at or below what the reference resolves are compared by their difference, where
+    # the shared part cancels and each one's own part counts
+    assert T.tied(-1e-4, 1e-5, 3, 5e-5, 1e-5, 3, a_u=1e-4, b_u=1e-4, shared_u=1e-3)
+    assert not T.tied(-1e-4, 1e-5, 3, 1e-3, 1e-5, 3, a_u=1e-4, b_u=1e-4, shared_u=1e-3)
+    # with one seed a side the seeds say nothing, the reference's uncertainty still does
+    assert T.tied(1.0e-3, math.nan, 1, 1.3e-3, math.nan, 1, a_u=2e-4, b_u=2.6e-4)
+    assert not T.tied(1.0e-3, math.nan, 1, 1.3e-3, math.nan, 1)
+    cells = T.overview_cells(uncertain, "relmse")
+    assert all(c["cells"][1.0]["best"] for c in cells)  # both bold: a tie
+    assert cells[0]["cells"][1.0]["detail"] == "ref. ±2.0e-04 · measured 0.003"
+
+
+def _images_of(truth: np.ndarray, sd: float, rng: np.random.Generator) -> np.ndarray:
+    return truth * (1 + sd * rng.standard_normal(truth.shape[:2] + (1,)))
+
+
+@pytest.mark.parametrize("reference_noise", [0.005, 0.5], ids=["fine", "coarse"])
+def test_a_winner_is_named_only_where_the_reference_can_rank_the_methods(
+    tmp_path: Path, reference_noise: float
+) -> None:
+    """Synthetic renders of a known truth, end to end through compare_run and the tables:
+    "a" (noise 5 %) against "b" (6 %, 1.44x a's error), three seeds each. A fine reference
+    names a the winner; with a coarse one (its own error 50x the methods') the cells are not
+    determined, and the reference's uncertainty, not the seeds, ties b with a, which the
+    index says instead of naming a winner."""
+    rng = np.random.default_rng(9)
+    truth = np.exp(rng.uniform(-2, 1, (32, 32, 1))) * np.array([1.0, 0.8, 0.6])
+    ref = tmp_path / "reference"
+    for h in (0, 1):
+        write_exr(ref / f"half{h}.exr", _images_of(truth, reference_noise, rng))
+    merge_reference(ref / "half0.exr", ref / "half1.exr", ref / "ref.exr", ref / "ref.json")
+    csvs = []
+    for method, sd in (("a", 0.05), ("b", 0.06)):
+        for seed in (1, 2, 3):
+            snap = tmp_path / method / f"s{seed}" / "run.t1.exr"
+            write_exr(snap, _images_of(truth, sd, rng))
+            write_json(snap.with_suffix(".json"), {"render_seconds": 1.0, "threads": 2})
+            csvs.append(tmp_path / f"{method}{seed}.csv")
+            compare_run([snap], [1.0], ref / "ref.exr", ref / "ref.json", csvs[-1],
+                        scene="toy", method=method, seed=seed, threads=2)  # fmt: skip
+    tabs = T.write_tables(T.load_runs(csvs), tmp_path / "tables", methods=["a", "b"])
+    best = tabs["best"].iloc[0]
+    fine = reference_noise < 0.1
+    assert tabs["summary"].determined.all() == fine and tabs["summary"].determined.any() == fine
+    if fine:
+        assert best.method == "a" and best.tied_with == "" and best.reference_ties == ""
+    else:  # either may have the lower mean; the other is tied with it, by the reference
+        other = {"a": "b", "b": "a"}[best.method]
+        assert best.tied_with == other and best.reference_ties == other
+    build_index(
+        {
+            "reports": str(tmp_path / "out"), "tables": str(tmp_path / "tables"),
+            "metric": "relmse", "baseline": "a", "title": "t", "study": "t",
+            "methods": ["a", "b"], "scenes": ["toy"], "refs": {"toy": str(ref / "ref.json")},
+        }
+    )  # fmt: skip
+    index = (tmp_path / "out" / "index.html").read_text()
+    winners = index[index.index("Best method per scene") : index.index("Overview:")]
+    assert ("undecided: " in winners) != fine and ("<td>a (" in winners) == fine
+
+
+# ------------------------------------------------------------------- references sized to a study
+
+
+def _sizing_case(rng: np.random.Generator, pilot_sd: float, bias: float = 1.0):
+    """A truth, a pilot (two halves of noise ``pilot_sd`` per value, their variances known),
+    and three seeds of two methods at the largest budget: "good" (noise 4 %, times ``bias``)
+    and "poor" (noise 10 %)."""
+    truth = np.exp(rng.uniform(-2, 1, (64, 64, 1))) * np.array([1.0, 0.8, 0.6])
+    pilot = [_images_of(truth, pilot_sd, rng) for _ in range(2)]
+    variances = [(pilot_sd * truth) ** 2] * 2
+    images = {
+        "good": [bias * _images_of(truth, 0.04, rng) for _ in range(3)],
+        "poor": [_images_of(truth, 0.10, rng) for _ in range(3)],
+    }
+    return truth, pilot, variances, images
+
+
+def test_a_reference_is_sized_to_a_fraction_of_the_best_methods_error() -> None:
+    """The plan bounds the best method's error from below (from its seeds, or its error with
+    the pilot's removed), and asks for the samples that bring the reference's error to the
+    target fraction of it: the pilot's error falls as 1/spp. A biased best method's seeds
+    see its noise only, and its bound stays below its true error."""
+    from compare.metrics import relmse_map
+    from compare.sizing import plan_reference
+
+    rng = np.random.default_rng(21)
+    truth, pilot, variances, images = _sizing_case(rng, pilot_sd=0.3)
+    plan = plan_reference(images, pilot, variances, pilot_spp=16, seconds_per_spp=0.01,
+                          target=0.5, max_seconds=1000)  # fmt: skip
+    true_error = np.mean([relmse_map(x, truth).mean() for x in images["good"]])
+    assert plan["best_method"] == "good" and not plan["cap_bound"]
+    assert plan["best_error_bound"] == pytest.approx(true_error, rel=0.1)
+    pilot_error = float((0.3**2 / 2 * truth**2 / (truth**2 + 0.01)).mean())  # (vA+vB)/4
+    assert plan["pilot_relmse"] == pytest.approx(pilot_error, rel=0.1)
+    assert (
+        plan["spp"]
+        == plan["spp_needed"]
+        == math.ceil(16 * plan["pilot_relmse"] / (0.5 * plan["best_error_bound"]))
+    )
+    assert plan["expected_relmse"] == pytest.approx(0.5 * plan["best_error_bound"], rel=0.01)
+    assert plan["expected_seconds"] == pytest.approx(2 * plan["spp"] * 0.01)
+    _, pilot, variances, images = _sizing_case(np.random.default_rng(21), 0.3, bias=0.9)
+    biased = plan_reference(images, pilot, variances, pilot_spp=16, seconds_per_spp=0.01,
+                            target=0.5, max_seconds=1000)  # fmt: skip
+    true_biased = np.mean([relmse_map(x, truth).mean() for x in images["good"]])
+    good = biased["methods"]["good"]
+    assert good["from_seeds"] < 0.2 * true_biased  # the seeds see the noise only
+    assert good["from_seeds"] <= biased["best_error_bound"] < true_biased
+
+
+def test_the_cap_bounds_a_reference_and_a_pilot_is_never_undone() -> None:
+    from compare.sizing import fixed_plan, plan_reference
+
+    _, pilot, variances, images = _sizing_case(np.random.default_rng(22), pilot_sd=0.3)
+    kw = dict(pilot_spp=16, seconds_per_spp=0.01, target=0.5)
+    capped = plan_reference(images, pilot, variances, max_seconds=2.0, **kw)
+    assert capped["cap_bound"] and capped["spp"] == capped["spp_cap"] == 100
+    assert capped["spp_needed"] > 100 and capped["expected_seconds"] == pytest.approx(2.0)
+    tiny = plan_reference(images, pilot, variances, max_seconds=0.1, **kw)
+    assert tiny["cap_bound"] and tiny["spp"] == 16  # what the pilot rendered is kept
+    loose = plan_reference(images, pilot, variances, max_seconds=1000, **{**kw, "target": 1e3})
+    assert not loose["cap_bound"] and loose["spp"] == 16  # the pilot is already enough
+    assert fixed_plan(256) == {"version": 1, "source": "mitsuba", "how": "fixed", "spp": 256}

@@ -7,6 +7,7 @@ with the real `pgi` when its reference renderer is available.
 
 from __future__ import annotations
 
+import html
 import importlib.util
 import json
 import os
@@ -96,7 +97,11 @@ def test_outputs(study: Path) -> None:
     assert len(runs) == 1 * 2 * 2 * 3  # scenes x methods x seeds x budgets
     assert set(runs.method) == {"pt", "lt"}
     assert runs.render_seconds.gt(0).all() and runs.relmse.gt(0).all()
-    assert runs.ref_ok.all()
+    # every MSE-type error also with the reference's own removed, and its uncertainty
+    for m in ("mse", "rmse", "relmse", "relmse_trimmed"):
+        assert runs[f"{m}_corrected"].notna().all() and runs[f"{m}_u"].gt(0).all(), m
+    summary = pd.read_csv(rep / "tables" / "summary.csv")
+    assert summary.determined.all()  # the fake reference is far finer than the fake methods
     assert runs.wall_seconds.notna().all() and runs.max_rss_mb.notna().all()
     # errors fall with time for every run
     for _, d in runs.groupby(["method", "seed"]):
@@ -177,14 +182,20 @@ def test_files_a_scene_reads_are_its_inputs(study: Path) -> None:
 
 def test_renderer_code_changes_rerun_what_they_affect(study: Path) -> None:
     """`pgi fingerprint` changes: new render code reruns every render (2 methods x 2 seeds)
-    and no reference; new reference code reruns the references (2 halves) and no render."""
+    and pgi's pt check of the reference (2 halves), whose plan then reruns the halves (a
+    Mitsuba half finds its passes in its store: nothing is rendered again); new reference
+    code reruns the references (2 halves), not the check and no render."""
     env = {"FAKE_PGI_METHODS": "pt,lt,sppm"}
-    cases = [({"FAKE_PGI_RENDER_CODE": "r1"}, 4, 0), ({"FAKE_PGI_REFERENCE_CODE": "f1"}, 0, 2)]
-    for changed, renders, halves in cases:
+    cases = [
+        ({"FAKE_PGI_RENDER_CODE": "r1"}, 4, 2, 2),
+        ({"FAKE_PGI_REFERENCE_CODE": "f1"}, 0, 0, 2),
+    ]
+    for changed, renders, checks, halves in cases:
         c = job_counts(
             snakemake(study, "--configfile", "cfg.yaml", "-n", env={**env, **changed}).stdout
         )
-        assert c.get("render", 0) == renders and c.get("reference_half", 0) == halves, (changed, c)
+        counts = (c.get("render", 0), c.get("reference_check", 0), c.get("reference_half", 0))
+        assert counts == (renders, checks, halves), (changed, c)
 
 
 def test_a_timed_render_runs_alone_on_more_cores(study: Path) -> None:
@@ -229,10 +240,12 @@ def test_analysis_code_is_an_input_of_the_analysis(study: Path) -> None:
         "src/compare/metrics.py": {
             "compare",
             "reference",
+            "reference_plan",
             "tables",
             "report_scene",
             "report_index",
         },
+        "src/compare/sizing.py": {"reference_plan", "report_scene", "report_index"},
         "src/compare/tables.py": {"tables", "report_scene", "report_index"},
         "src/compare/report/build.py": {"report_scene", "report_index"},
         "src/compare/report/assets/viewer.js": {"report_scene", "report_index"},
@@ -250,12 +263,13 @@ def test_analysis_steps_import_only_the_code_they_list(study: Path) -> None:
     for rule, body in _job_inputs(study):
         found = re.search(r"input: (.*)", body)
         inputs.setdefault(rule, set()).update(found[1].split(", ") if found else ())
-    analysis = ["compare", "reference", "tables", "report_scene", "report_index"]
+    analysis = ["compare", "reference", "reference_plan", "tables", "report_scene", "report_index"]
     env = {"FAKE_PGI_METHODS": "pt,lt,sppm", "PYTHONPROFILEIMPORTTIME": "1"}
     snakemake(study, "--configfile", "cfg.yaml", "--forcerun", *analysis, env=env)
     logs = {
         "compare": study.glob("results/logs/compare/*/*/*.log"),
         "reference": study.glob("results/logs/reference/*/merge.log"),
+        "reference_plan": study.glob("results/logs/reference/*/plan.log"),
         "tables": [study / "results" / "logs" / "tables.log"],
         "report_scene": study.glob("results/logs/report/*.log"),
     }
@@ -513,7 +527,11 @@ def dry_run(tmp_path_factory: pytest.TempPathFactory) -> str:
 
 
 def test_reference_halves_have_their_own_seeds(dry_run: str) -> None:
-    assert sorted(re.findall(r" reference \S+ --spp 16 --seed (\d+)", dry_run)) == ["100", "101"]
+    """Each half, and each half of pt's check, renders with reference.seed + its index."""
+    halves = re.findall(r"reference-args \S+ (\d)\) --seed (\d+)", dry_run)
+    assert sorted(halves) == [("0", "100"), ("1", "101")]
+    checks = re.findall(r" reference \S+ --spp 16 --seed (\d+) --source pgi", dry_run)
+    assert sorted(checks) == ["100", "101"]
 
 
 def test_runs_use_the_configured_seeds(dry_run: str) -> None:
@@ -541,3 +559,153 @@ def test_another_checkouts_installation_is_refused(tmp_path: Path) -> None:
     assert p.returncode != 0 and len(out) == 1, out
     assert f"imports `compare` from {ROOT / 'src' / 'compare'}" in out[0], out
     assert str(tmp_path / "src") in out[0], out
+
+
+@pytest.fixture(scope="module")
+def sized_study(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The fake study with its reference sized to it ("auto"): a pilot, a plan, the halves."""
+    wd = tmp_path_factory.mktemp("sized")
+    (wd / "scenes" / "alpha").mkdir(parents=True)
+    (wd / "scenes" / "alpha" / "scene.yaml").write_text("# fake scene alpha\n")
+    reference = {"spp": "auto", "pilot_spp": 8, "target": 0.5, "max_seconds": 1.0}
+    write_config(wd / "cfg.yaml", wd / "scenes", reference=reference)
+    snakemake(wd, "--configfile", "cfg.yaml", env={"FAKE_PGI_METHODS": "pt,lt,sppm"})
+    return wd
+
+
+def test_a_sized_reference_follows_its_plan(sized_study: Path) -> None:
+    """The plan bounds the best method's error at the largest budget from the pilot and the
+    runs, and the halves render the samples it asks for (the fake renders 1 ms per spp, so
+    the 1-second cap allows 500 a half); ref.json and the report carry the plan."""
+    folder = sized_study / "results" / "reference" / "alpha"
+    plan = json.loads((folder / "plan.json").read_text())
+    assert plan["how"] == "sized" and plan["best_method"] == "pt" and plan["pilot_spp"] == 8
+    assert plan["spp_cap"] == 500 and plan["spp"] == min(plan["spp_needed"], 500) > 8
+    for h in (0, 1):
+        assert json.loads((folder / f"half{h}.json").read_text())["spp"] == plan["spp"]
+        assert json.loads((folder / f"pilot{h}.json").read_text())["spp"] == 8
+    ref = json.loads((folder / "ref.json").read_text())
+    assert ref["plan"] == plan and ref["variances"] is True
+    assert ref["ref_relmse"] < plan["target"] * plan["best_error_bound"] * 1.5
+    index = (sized_study / "reports" / "index.html").read_text()
+    assert "<td>to the study</td>" in index and "cells determined" in index
+    page = (sized_study / "reports" / "scene-alpha.html").read_text()
+    assert "Sized from a pilot of 8 spp a half" in page
+
+
+def test_a_new_method_resizes_the_reference_not_its_pilot(sized_study: Path) -> None:
+    """The plan reads every method's runs: a method added reruns the plan and the halves
+    (extending their stores), not the pilots; a new cap reruns the plan alone."""
+    env = {"FAKE_PGI_METHODS": "pt,lt,sppm"}
+    write_config(
+        sized_study / "more.yaml",
+        sized_study / "scenes",
+        methods=["pt", "lt", "sppm"],
+        reference={"spp": "auto", "pilot_spp": 8, "target": 0.5, "max_seconds": 1.0},
+    )
+    c = job_counts(snakemake(sized_study, "--configfile", "more.yaml", "-n", env=env).stdout)
+    assert c.get("render") == 2 and c.get("reference_plan") == 1
+    assert c.get("reference_half") == 2 and "reference_pilot" not in c
+    write_config(
+        sized_study / "cap.yaml",
+        sized_study / "scenes",
+        reference={"spp": "auto", "pilot_spp": 8, "target": 0.5, "max_seconds": 2.0},
+    )
+    c = job_counts(snakemake(sized_study, "--configfile", "cap.yaml", "-n", env=env).stdout)
+    assert c.get("reference_plan") == 1 and "render" not in c and "reference_pilot" not in c
+
+
+# ------------------------------------------------------------- can the reference be trusted?
+
+
+@pytest.fixture(scope="module")
+def trust_study(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The fake study on four scenes whose references meet each case of the check against pgi's
+    pt: `sound` (Mitsuba's passes), `dense` (Mitsuba's is black: pgi's pt takes over),
+    `dark` (black too, but its samples are fixed: nothing can take over) and `ours` (the
+    config asks for pgi's pt)."""
+    wd = tmp_path_factory.mktemp("trust")
+    for s in ("sound", "dense", "dark", "ours"):
+        (wd / "scenes" / s).mkdir(parents=True)
+        (wd / "scenes" / s / "scene.yaml").write_text(f"# fake scene {s}\n")
+    scenes = [
+        "sound",
+        "dense",
+        {"name": "dark", "reference_spp": 64},
+        {"name": "ours", "reference_source": "pgi"},
+    ]
+    reference = {"spp": "auto", "pilot_spp": 8, "check_spp": 8, "target": 0.5, "max_seconds": 1.0}
+    write_config(
+        wd / "cfg.yaml", wd / "scenes", scenes=scenes, budgets=[0.5, 1], reference=reference
+    )
+    env = {"FAKE_PGI_METHODS": "pt,lt", "FAKE_PGI_DEAD_SCENES": "dense,dark"}
+    snakemake(wd, "--configfile", "cfg.yaml", env=env)
+    return wd
+
+
+def _reference_record(study: Path, scene: str, name: str) -> dict:
+    return json.loads((study / "results" / "reference" / scene / name).read_text())
+
+
+def test_a_sound_reference_passes_its_check_and_stays_mitsubas(trust_study: Path) -> None:
+    plan = _reference_record(trust_study, "sound", "plan.json")
+    assert plan["source"] == "mitsuba" and not plan["fallback"] and plan["trust"]["trustworthy"]
+    ref = _reference_record(trust_study, "sound", "ref.json")
+    assert ref["source"] == "mitsuba" and ref["trusted"] and ref["trust"]["trustworthy"]
+    assert ref["trust"]["checked_against"] == "pgi's pt" and ref["trust"]["findings"] == []
+    page = (trust_study / "reports" / "scene-sound.html").read_text()
+    assert "Checked against pgi's pt (two halves of 8 spp)" in page
+    assert "No trustworthy" not in page
+
+
+def test_an_untrustworthy_mitsuba_reference_falls_back_to_pt(trust_study: Path) -> None:
+    """Mitsuba's black pilot fails the check: the plan sizes the reference from pt's check
+    (its pilot) and the halves are pt's, extending the check's stores; the report names the
+    finding and the source, and ranks the methods against pt's reference."""
+    plan = _reference_record(trust_study, "dense", "plan.json")
+    assert plan["source"] == "pgi" and plan["fallback"] and plan["how"] == "sized"
+    assert not plan["trust"]["trustworthy"] and plan["pilot_spp"] == 8
+    assert any("exactly 0" in f for f in plan["trust"]["findings"]), plan["trust"]
+    for h in (0, 1):
+        side = _reference_record(trust_study, "dense", f"half{h}.json")
+        assert side["source"] == "pgi" and side["spp"] == plan["spp"]
+    ref = _reference_record(trust_study, "dense", "ref.json")
+    assert ref["source"] == "pgi" and ref["source_label"] == "pgi's pt" and ref["trusted"]
+    page = (trust_study / "reports" / "scene-dense.html").read_text()
+    finding = html.escape(plan["trust"]["findings"][0])
+    assert f"No trustworthy Mitsuba reference: {finding}" in page
+    assert "reference rendered by pgi's pt" in page
+    tables = trust_study / "reports" / "tables"
+    runs = pd.read_csv(tables / "runs.csv")
+    assert set(runs[runs.scene == "dense"].reference) == {"pgi's pt"}
+    assert set(runs[runs.scene == "sound"].reference) == {"Mitsuba"}
+    best = pd.read_csv(tables / "best.csv")
+    assert set(best[best.scene == "dense"].reference) == {"pgi's pt"}
+    assert "dense (reference: pgi's pt)" in (tables / "overview.md").read_text()
+
+
+def test_a_fixed_untrustworthy_reference_ranks_nothing(trust_study: Path) -> None:
+    """A fixed reference has no pilot to send elsewhere: the finished one is checked, and a
+    failure leaves its scene without winners, saying why."""
+    ref = _reference_record(trust_study, "dark", "ref.json")
+    assert ref["source"] == "mitsuba" and not ref["trusted"]
+    assert ref["warnings"] == [ref["trust"]["line"]]
+    assert ref["trust"]["line"].startswith("Mitsuba's reference of dark is not trustworthy: ")
+    best = pd.read_csv(trust_study / "reports" / "tables" / "best.csv")
+    assert "dark" not in set(best.scene) and "sound" in set(best.scene)
+    index = (trust_study / "reports" / "index.html").read_text()
+    assert "no trustworthy reference" in index
+    assert (
+        "No trustworthy Mitsuba reference"
+        in (trust_study / "reports" / "scene-dark.html").read_text()
+    )
+
+
+def test_a_scene_may_ask_for_pts_reference(trust_study: Path) -> None:
+    """`reference_source: pgi`: no Mitsuba pilot; pt's check is the pilot."""
+    folder = trust_study / "results" / "reference" / "ours"
+    assert not (folder / "pilot0.exr").exists()
+    plan = _reference_record(trust_study, "ours", "plan.json")
+    assert plan["source"] == "pgi" and not plan["fallback"] and plan["trust"] is None
+    ref = _reference_record(trust_study, "ours", "ref.json")
+    assert ref["source"] == "pgi" and ref["trusted"] and ref["trust"] is None

@@ -4,7 +4,8 @@ For an unbiased estimator MSE ~ t^-1 (slope -1 on a log-log plot); a consistent 
 estimator with a d-dimensional kernel reaches at best t^(-4/(d+4)) (Knaus & Zwicker 2011).
 The fitted slope is reported next to each curve. A noisy reference adds its own error to every
 measurement (E[measured] = true error + reference error for MSE; approximately for relMSE), which
-flattens the curves of fast methods; ``fit_slope_above_floor`` fits the excess over it.
+flattens the curves of fast methods; ``fit_slope_of_corrected`` fits the errors with it removed
+(compare.metrics.corrected_errors), ``fit_slope_above_floor`` the excess over a known floor.
 ``bounded`` keeps a time-to-error estimate within what the measurements support.
 """
 
@@ -15,6 +16,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+
+from .metrics import COVERAGE
 
 
 @dataclass(frozen=True)
@@ -93,6 +96,30 @@ def fit_slope_above_floor(
     if not enough_budgets(b[keep]):
         return SlopeFit(math.nan, math.nan, math.nan, int(keep.sum()))
     return fit_slope(t[keep], e[keep] - floor)
+
+
+# Corrected errors are fitted only where they are at least this many times their uncertainty
+# (their interval of COVERAGE uncertainties within a factor of about 1.5 of them): the
+# logarithm of an error the reference cannot resolve is noise.
+MIN_SIGNAL = 2.0 * COVERAGE
+
+
+def fit_slope_of_corrected(
+    times: Sequence[float],
+    corrected: Sequence[float],
+    uncertainty: Sequence[float],
+    budgets: Sequence[float] | None = None,
+) -> SlopeFit:
+    """Slope of the corrected errors vs time, over the points with corrected >= MIN_SIGNAL x
+    their uncertainty; NaN (with n = points kept) unless those come from enough_budgets."""
+    t = np.asarray(times, dtype=np.float64)
+    c = np.asarray(corrected, dtype=np.float64)
+    u = np.asarray(uncertainty, dtype=np.float64)
+    b = t if budgets is None else np.asarray(budgets, dtype=np.float64)
+    keep = (c > 0) & np.isfinite(c) & (c >= MIN_SIGNAL * np.nan_to_num(u, nan=np.inf)) & (t > 0)
+    if not enough_budgets(b[keep]):
+        return SlopeFit(math.nan, math.nan, math.nan, int(keep.sum()))
+    return fit_slope(t[keep], c[keep])
 
 
 def time_to_error(

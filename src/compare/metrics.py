@@ -245,8 +245,147 @@ def reference_error(
     }
 
 
-# A comparison is limited by its reference unless the reference's own relMSE is this many
-# times below the image's (the workflow's ref_quality_factor, configs/schema.yaml).
+# --- errors with the reference's own error removed ---------------------------------------------
+#
+# The reference R = (A + B) / 2 averages two independent, unbiased halves. For a test image x
+# (independent of them) and the unknown truth T, per value
+#
+#     (x - A)(x - B) = (x - T)^2 - (x - T)(a + b) + a b,     a = A - T, b = B - T,
+#
+# whose expectation over the halves is (x - T)^2: the product of the errors against the two
+# halves is an unbiased estimate of the squared error against the truth. It equals
+# (x - R)^2 - (A - B)^2 / 4, the measured squared error less the reference's own (estimated
+# from the halves), so the corrected MSE is the measured MSE less ``ref_mse``. relMSE keeps
+# the reference in its denominator, r^2 + eps with r = R: corrected to first order in the
+# reference's relative noise. Its uncertainty, given x, comes from the halves alone:
+#
+#     Var[(x - A)(x - B)] = (x - T)^2 (vA + vB) + vA vB,
+#
+# the first term this image's own (it falls with the image's error), the second shared by
+# every image compared with this reference (the noise of the reference-error estimate).
+# vA, vB are the variances of the halves' means per value: measured from each half's passes
+# when given, else estimated from the halves' difference alone, (A - B)^2 for vA + vB and
+# (A - B)^4 / 12 for vA vB (exact in expectation for Gaussian noise of equal variance; heavier
+# tails overstate it). Pixels are independent (box filter, independent samples); the three
+# channels of a pixel are not, and are combined as if fully correlated (an upper bound).
+#
+# Only squared errors decompose so: MAPE, SMAPE, HDR-FLIP and SSIM are shown as measured.
+
+# Metrics whose reference error is removed, and how each is corrected.
+CORRECTABLE: tuple[str, ...] = ("mse", "rmse", "relmse", "relmse_trimmed")
+# Standard uncertainties in the interval a verdict or a flag uses (about 95 %).
+COVERAGE = 2.0
+# A corrected error is determined when that interval lies within this fraction of it (the
+# workflow's determined_fraction, configs/schema.yaml).
+DETERMINED_FRACTION = 0.2
+
+
+def variance_terms(
+    a: np.ndarray, b: np.ndarray, var_a: np.ndarray | None, var_b: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """(vA + vB, vA vB) per value: from the halves' own variances when both are given, else
+    estimated from their difference."""
+    if var_a is None or var_b is None:
+        d2 = (a - b) ** 2
+        return d2, d2 * d2 / 12.0
+    va, vb = (as_rgb(v, "variance") for v in (var_a, var_b))
+    for v in (va, vb):
+        if v.shape != a.shape:
+            raise ValueError(f"variance image is {v.shape[1]}x{v.shape[0]}, the halves "
+                             f"{a.shape[1]}x{a.shape[0]}")  # fmt: skip
+        if not np.all(np.isfinite(v)) or (v < 0).any():
+            raise ValueError("variance image has negative or non-finite values")
+    return va + vb, va * vb
+
+
+def mean_and_uncertainty(
+    product: np.ndarray, own: np.ndarray, shared: np.ndarray, kept: np.ndarray | None = None
+) -> tuple[float, float, float]:
+    """Mean of ``product`` over pixels and channels, and the standard uncertainties of that
+    mean from per-value variances ``own`` and ``shared`` (a pixel's channels taken as fully
+    correlated: the standard deviation of their mean is at most the mean of theirs).
+    ``kept``: a boolean (H, W) mask of the pixels averaged (all by default)."""
+    if kept is not None:
+        product, own, shared = product[kept], own[kept], shared[kept]
+    n = product.shape[0] * (product.shape[1] if product.ndim == 3 else 1)
+    sd_own = np.sqrt(own).mean(axis=-1)
+    sd_shared = np.sqrt(shared).mean(axis=-1)
+    return (
+        float(product.mean()),
+        float(np.sqrt((sd_own**2).sum())) / n,
+        float(np.sqrt((sd_shared**2).sum())) / n,
+    )
+
+
+def corrected_errors(
+    test: np.ndarray,
+    half_a: np.ndarray,
+    half_b: np.ndarray,
+    var_a: np.ndarray | None = None,
+    var_b: np.ndarray | None = None,
+) -> dict[str, float]:
+    """The MSE-type errors of ``test`` with the reference's own error removed, and their
+    uncertainties; the reference is the mean of the independent halves ``half_a``, ``half_b``
+    (``var_a``, ``var_b``: the variances of their means per value, when known).
+
+    For each metric m of CORRECTABLE: ``m_corrected`` (an estimate of m against the truth;
+    it may come out negative when the image is closer to the truth than the reference can
+    tell), ``m_u`` (its standard uncertainty from the reference's noise, given the image) and
+    ``m_u_shared`` (the part of it shared by every image compared with this reference; the
+    rest is this image's own, independent of the shared part). relMSE (trimmed) drops the
+    pixels the measured one drops. RMSE is the square root of the corrected MSE (0 when that
+    is negative), its uncertainties those of the MSE carried through the square root.
+    """
+    x, a = validate_pair(test, half_a, ("test image", "reference half 0"))
+    _, b = validate_pair(test, half_b, ("test image", "reference half 1"))
+    v_sum, v_prod = variance_terms(a, b, var_a, var_b)
+    r = 0.5 * (a + b)
+    product = (x - a) * (x - b)
+    own = np.maximum(product, 0.0) * v_sum  # (x - T)^2 estimated by the product itself
+    w = 1.0 / (r * r + EPS)
+    out: dict[str, float] = {}
+
+    def put(name: str, value: float, u: float, shared: float) -> None:
+        out[f"{name}_corrected"] = value
+        out[f"{name}_u"] = math.hypot(u, shared)
+        out[f"{name}_u_shared"] = shared
+
+    put("mse", *mean_and_uncertainty(product, own, v_prod))
+    mse, mse_u, mse_shared = out["mse_corrected"], out["mse_u"], out["mse_u_shared"]
+    out["rmse_corrected"], out["rmse_u"] = _sqrt_interval(mse, mse_u)
+    out["rmse_u_shared"] = _sqrt_interval(mse, mse_shared)[1]
+    relative = (product * w, own * w * w, v_prod * w * w)
+    put("relmse", *mean_and_uncertainty(*relative))
+    measured_px = ((x - r) ** 2 * w).mean(axis=2)
+    put("relmse_trimmed", *mean_and_uncertainty(*relative, kept=_untrimmed(measured_px)))
+    return out
+
+
+def _sqrt_interval(value: float, u: float) -> tuple[float, float]:
+    """sqrt of a corrected MSE (0 below 0), and the half-width of the interval value +- u
+    carried through sqrt: the uncertainty of the RMSE."""
+    hi, lo = math.sqrt(max(value + u, 0.0)), math.sqrt(max(value - u, 0.0))
+    return math.sqrt(max(value, 0.0)), 0.5 * (hi - lo)
+
+
+def _untrimmed(per_pixel: np.ndarray, fraction: float = TRIM_FRACTION) -> np.ndarray:
+    """Mask of the pixels trimmed_mean keeps: all but the floor(fraction * size) largest."""
+    v = np.ravel(per_pixel)
+    k = int(math.floor(fraction * v.size))
+    kept = np.ones(v.size, dtype=bool)
+    if k > 0:
+        kept[np.argpartition(v, v.size - k)[v.size - k :]] = False
+    return kept.reshape(per_pixel.shape)
+
+
+def determined(value: float, u: float, fraction: float) -> bool:
+    """Whether a corrected error is known to within ``fraction`` of itself: positive, and its
+    interval of COVERAGE standard uncertainties no wider than that on either side."""
+    return bool(value > 0 and COVERAGE * u <= fraction * value)
+
+
+# Benchmarks' rule of thumb: a measurement is limited by its reference unless the reference's
+# own relMSE is this many times below it (the workflow removes the reference's error instead).
 REF_QUALITY_FACTOR = 10.0
 
 

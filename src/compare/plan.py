@@ -31,7 +31,7 @@ from renderer.progressive import snapshot_label
 from renderer.scene import load_scene
 from renderer.scene.model import format_path
 
-from .metrics import REF_QUALITY_FACTOR
+from .metrics import DETERMINED_FRACTION
 
 
 class PlanError(ValueError):
@@ -182,6 +182,10 @@ def schema_error_message(error: Any) -> str:
     message = error.message
     if error.validator == "type":  # a number that arrived as text (YAML 1.1)?
         message += number_as_text_hint(error.instance, error.validator_value)
+    elif error.validator == "pattern":  # a key taking a number or a word (reference.spp)
+        numeric = [t for t in ("integer", "number") if t in (error.schema.get("type") or ())]
+        if numeric:
+            message += number_as_text_hint(error.instance, numeric[0])
     return f"{_key_path(error)}: {message}{other_forms}"
 
 
@@ -190,7 +194,16 @@ class SceneSpec:
     name: str
     path: Path  # scene folder
     set: tuple[str, ...] = ()
-    reference_spp: int = 1024
+    # samples per reference half; None: sized to the study (compare.sizing) within the cap
+    reference_spp: int | None = None
+    reference_max_seconds: float = 120.0  # the cap of a sized reference, both halves
+    # what renders its reference: "mitsuba" (checked against pgi's pt, which takes over where
+    # Mitsuba's is not trustworthy) or "pgi" (pgi's pt from the start)
+    reference_source: str = "mitsuba"
+
+    @property
+    def reference_sized(self) -> bool:
+        return self.reference_spp is None
 
 
 # The settings a variant may change: they change how an image is estimated, not what it
@@ -227,11 +240,17 @@ class Plan:
     budgets: tuple[float, ...]
     seeds: tuple[int, ...]
     ref_seed: int
+    # sized references: the pilot's spp per half, and the target (reference relMSE over the
+    # best method's at the largest budget)
+    ref_pilot_spp: int = 16
+    ref_target: float = 1.0
+    # spp per half of pgi's pt check of each reference (and the pilot of a reference pt renders)
+    ref_check_spp: int = 16
     method_args: dict[str, tuple[str, ...]] = field(default_factory=dict)
     variants: dict[str, VariantSpec] = field(default_factory=dict)
     baseline: str = "pt"
     primary_metric: str = "relmse"
-    ref_quality_factor: float = REF_QUALITY_FACTOR
+    determined_fraction: float = DETERMINED_FRACTION
     title: str = "pgi comparison"
     viewer_max_size: int = 512
     timed_render_slots: int = 1
@@ -549,7 +568,9 @@ def make_plan(
     # Scenes and arguments are checked here only when `pgi` is this package's own: another
     # command may read them its own way.
     check_here = check_scenes and str(config.get("pgi", "auto")) == "auto"
-    default_spp = int(ref.get("spp", 1024))
+    fixed_spp = ref.get("spp", "auto")
+    default_spp = None if fixed_spp == "auto" else int(fixed_spp)
+    default_cap = float(ref.get("max_seconds", 120.0))
     loaded: _Loaded = {}  # each scene read once for all the checks below
 
     scenes: dict[str, SceneSpec] = {}
@@ -574,7 +595,11 @@ def make_plan(
                 check_one_value_per_key(entry.get("set") or (), f"scenes: '{name}': set"),
                 f"scenes: '{name}': set",
             ),
-            reference_spp=int(entry.get("reference_spp", default_spp)),
+            reference_spp=(
+                int(entry["reference_spp"]) if "reference_spp" in entry else default_spp
+            ),
+            reference_max_seconds=float(entry.get("reference_max_seconds", default_cap)),
+            reference_source=str(entry.get("reference_source", ref.get("source", "mitsuba"))),
         )
         if check_here:
             check_scene(scenes[name], loaded=loaded)
@@ -669,9 +694,19 @@ def make_plan(
                 f"budgets: {b!r} has more than the 6 significant digits that file names and "
                 f"--snapshots carry; write {tag}"
             )
-    factor = float(config.get("ref_quality_factor", REF_QUALITY_FACTOR))
-    if not math.isfinite(factor):
-        raise PlanError(f"ref_quality_factor: expected a finite number, got {factor}")
+    fraction = float(config.get("determined_fraction", DETERMINED_FRACTION))
+    if not math.isfinite(fraction):
+        raise PlanError(f"determined_fraction: expected a finite number, got {fraction}")
+    target = float(ref.get("target", 1.0))
+    for key, value in (("reference.target", target), ("reference.max_seconds", default_cap)):
+        if not math.isfinite(value):
+            raise PlanError(f"{key}: expected a finite number, got {value}")
+    for name, spec in scenes.items():
+        if not math.isfinite(spec.reference_max_seconds):
+            raise PlanError(
+                f"scenes: '{name}': reference_max_seconds: expected a finite number, got "
+                f"{spec.reference_max_seconds}"
+            )
     # Checked before any job runs, not found by the first job that writes there (or, for the
     # reports, by the last).
     for key, default in (("results_dir", "results"), ("reports_dir", "reports")):
@@ -694,11 +729,14 @@ def make_plan(
         budgets=budgets,
         seeds=tuple(int(s) for s in config["seeds"]),
         ref_seed=ref_seed,
+        ref_pilot_spp=int(ref.get("pilot_spp", 16)),
+        ref_check_spp=int(ref.get("check_spp", 16)),
+        ref_target=target,
         method_args=method_args,
         variants={label: variants[label] for label in labels},
         baseline=baseline,
         primary_metric=str(config.get("primary_metric", "relmse")),
-        ref_quality_factor=factor,
+        determined_fraction=fraction,
         title=str(report.get("title", "pgi comparison")),
         viewer_max_size=int(report.get("viewer_max_size", 512)),
         timed_render_slots=int(config.get("timed_render_slots", 1)),

@@ -11,17 +11,35 @@ import re
 import sys
 from pathlib import Path
 
-from .metrics import REF_QUALITY_FACTOR
+from .metrics import DETERMINED_FRACTION
+
+
+def _reference_plan(a: argparse.Namespace) -> None:
+    from .sizing import plan_from_files
+
+    plan = plan_from_files(json.loads(a.spec))
+    print(json.dumps(plan, indent=1, default=str))
+
+
+def _reference_args(a: argparse.Namespace) -> None:
+    """The `pgi reference` options a plan gives one half: what the reference-half job runs."""
+    from renderer.imageio import read_json
+
+    from .sizing import half_args
+
+    print(half_args(read_json(a.plan), Path(a.plan).parent, int(a.half)))
 
 
 def _merge_reference(a: argparse.Namespace) -> None:
     from .runs import merge_reference
 
-    info = merge_reference(a.half_a, a.half_b, a.out_exr, a.out_json)
+    info = merge_reference(a.half_a, a.half_b, a.out_exr, a.out_json, a.plan, a.check)
     print(
         f"reference: half-vs-half relMSE {info['halves_relmse']:.4g}, "
         f"estimated reference relMSE {info['ref_relmse']:.4g}"
     )
+    if info.get("trust"):
+        print(info["trust"]["line"])
 
 
 def _compare_run(a: argparse.Namespace) -> None:
@@ -38,7 +56,6 @@ def _compare_run(a: argparse.Namespace) -> None:
         method=a.method,
         seed=a.seed,
         threads=a.threads,
-        ref_quality_factor=a.ref_factor,
     )
     print(df.to_string())
 
@@ -64,6 +81,7 @@ def _tables(a: argparse.Namespace) -> None:
         baseline=a.baseline,
         scenes=a.scenes.split(",") if a.scenes else (),
         methods=a.methods.split(",") if a.methods else (),
+        determined_fraction=a.determined_fraction,
     )
     print(tables["best"].to_string())
 
@@ -84,11 +102,24 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m compare.steps", description=__doc__)
     sub = ap.add_subparsers(dest="step", required=True)
 
+    p = sub.add_parser("reference-plan", help="how many samples a reference needs (spec as JSON)")
+    p.add_argument("spec")
+    p.set_defaults(fn=_reference_plan)
+
+    p = sub.add_parser("reference-args", help="print the `pgi reference` options of a plan")
+    p.add_argument("plan")
+    p.add_argument("half", help="0 or 1")
+    p.set_defaults(fn=_reference_args)
+
     p = sub.add_parser("merge-reference", help="average two reference halves, record error")
     p.add_argument("half_a")
     p.add_argument("half_b")
     p.add_argument("out_exr")
     p.add_argument("out_json")
+    p.add_argument("--plan", help="the reference's plan (reference-plan), recorded with it")
+    p.add_argument(
+        "--check", nargs=2, help="the two halves of pgi's pt check (a Mitsuba reference is checked)"
+    )
     p.set_defaults(fn=_merge_reference)
 
     p = sub.add_parser("compare-run", help="metrics of every snapshot of one run")
@@ -100,7 +131,6 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--budgets", required=True, help="comma separated, one per snapshot")
     p.add_argument("--ref", required=True)
     p.add_argument("--ref-json", required=True)
-    p.add_argument("--ref-factor", type=float, default=REF_QUALITY_FACTOR)
     p.add_argument("-o", required=True)
     p.set_defaults(fn=_compare_run)
 
@@ -109,6 +139,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--results", required=True, help="results folder (for benchmark files)")
     p.add_argument("--metric", default="relmse")
     p.add_argument("--baseline", default="pt")
+    p.add_argument(
+        "--determined-fraction",
+        type=float,
+        default=DETERMINED_FRACTION,
+        help="flag cells whose corrected error is not known to within this fraction",
+    )
     p.add_argument("--scenes", default="", help="comma-separated: the order of rows")
     p.add_argument("--methods", default="", help="comma-separated: the order of rows")
     p.add_argument("-o", required=True, help="output folder")

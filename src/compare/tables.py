@@ -2,19 +2,31 @@
 
 Tables (all written by :func:`write_tables` into one folder):
 
-- ``runs.csv``           one row per scene x method x seed x budget: metrics, sidecar stats,
-                         the reference's own error and the ``ref_ok`` quality flag
-- ``summary.csv``        mean, std, min, max over seeds per scene x method x budget
-- ``best.csv``           the best method per scene and budget, and the methods tied with it
+- ``runs.csv``           one row per scene x method x seed x budget: metrics as measured,
+                         sidecar stats, the reference's own error, what rendered it
+                         (``reference``: Mitsuba, or pgi's pt where Mitsuba's failed its
+                         check) and whether it passed (``reference_trusted``); for the MSE-type
+                         metrics the error with the reference's own removed
+                         (``<metric>_corrected``) and its uncertainties (``<metric>_u``, of
+                         which ``<metric>_u_shared`` is shared by every image of the scene)
+- ``summary.csv``        mean, std, min, max over seeds per scene x method x budget, measured
+                         and corrected; the reference's uncertainty of each corrected mean
+                         (``<metric>_u``) and whether that mean is determined (``determined``)
+- ``best.csv``           the best method per scene and budget by corrected error, the methods
+                         tied with it, those of them tied only by the reference's
+                         uncertainty (``reference_ties``), and the reference's source; none
+                         for a scene whose reference failed its check (compare.trust)
 - ``overview.{md,html}`` primary metric, scene x method rows, one column per budget,
-                         mean +- std over seeds, best method per scene and budget marked,
-                         cells whose reference is not good enough flagged
+                         mean +- std over seeds (corrected, the measured value beside it),
+                         best method per scene and budget marked, cells whose corrected
+                         error is not determined flagged
 - ``convergence.csv``    fitted log-log slope of error vs render time per scene x method x metric,
-                         and for MSE and relMSE the slope of the error minus the reference's own
-                         error (``slope_ref_removed``, over points at >= 2x that error); for
+                         and for the MSE-type metrics the slope of the corrected error
+                         (``slope_ref_removed``, over points at >= 4x its uncertainty); for
                          each, the range of the slopes fitted to each seed alone
                          (``*_seed_min``, ``*_seed_max``)
-- ``time_to_error.csv``  time each method needs to reach a target error, and its speed-up vs the
+- ``time_to_error.csv``  time each method needs to reach a target error (corrected errors where
+                         the runs have them), and its speed-up vs the
                          baseline method (target: the baseline's mean error at its largest
                          budget, else the median final error of all methods); extrapolations
                          further than 4x outside the measured times become bounds (``bound``
@@ -38,10 +50,17 @@ from .convergence import (
     SlopeFit,
     bounded,
     fit_slope_above_floor,
+    fit_slope_of_corrected,
     fit_slope_over_budgets,
     time_to_error,
 )
-from .metrics import METRICS
+from .metrics import (
+    CORRECTABLE,
+    COVERAGE,
+    DETERMINED_FRACTION,
+    METRICS,
+    determined,
+)
 
 KEYS = ["scene", "method", "budget"]
 # Metrics whose reference error is known, and its column in runs.csv (the reference's own
@@ -83,7 +102,6 @@ def load_runs(metric_csvs: Iterable[str | Path], benchmarks: dict | None = None)
         df.loc[sel, "wall_seconds"] = pd.to_numeric(b["s"], errors="coerce").iloc[-1]
         if "max_rss" in b:
             df.loc[sel, "max_rss_mb"] = pd.to_numeric(b["max_rss"], errors="coerce").iloc[-1]
-    df["ref_ok"] = df["ref_ok"].astype(bool)
     return df.sort_values(["scene", "method", "seed", "budget"]).reset_index(drop=True)
 
 
@@ -112,16 +130,61 @@ def study_order(
     return df.iloc[rows].reset_index(drop=True)
 
 
-def summarize(runs: pd.DataFrame) -> pd.DataFrame:
-    """Mean/std/min/max over seeds of every metric (flat columns ``<metric>_<stat>``)."""
+def is_corrected(frame: pd.DataFrame, metric: str) -> bool:
+    """Whether a runs or summary table has ``metric`` with the reference's error removed
+    (tables made from runs that carry no such column are read as measured)."""
+    return f"{metric}_corrected" in frame or f"{metric}_corrected_mean" in frame
+
+
+def value_column(frame: pd.DataFrame, metric: str) -> str:
+    """The column of a runs table that verdicts, fits and plots use for ``metric``."""
+    return f"{metric}_corrected" if f"{metric}_corrected" in frame else metric
+
+
+# The metric whose determination flags a cell in every table (the one relMSE's eps and the
+# reference's sizing are about).
+FLAG_METRIC = "relmse"
+
+
+def summarize(runs: pd.DataFrame, determined_fraction: float = DETERMINED_FRACTION) -> pd.DataFrame:
+    """Mean/std/min/max over seeds of every metric (flat columns ``<metric>_<stat>``), measured
+    and, where the runs have them, corrected (``<metric>_corrected_<stat>``). For those, the
+    reference's standard uncertainty of the cell's corrected mean (``<metric>_u``; its part
+    shared by every cell of the scene, ``<metric>_u_shared``; each image's own part is averaged
+    over the seeds as if they were fully correlated, an upper bound) and whether that mean is
+    determined to within ``determined_fraction`` (``<metric>_determined``; ``determined`` is
+    FLAG_METRIC's)."""
     metrics = [m for m in METRICS if m in runs]
+    corrected = [f"{m}_corrected" for m in CORRECTABLE if f"{m}_corrected" in runs]
     g = runs.groupby(KEYS, sort=True)
-    agg = g[metrics + ["render_seconds"]].agg(["mean", "std", "min", "max"])
+    agg = g[metrics + corrected + ["render_seconds"]].agg(["mean", "std", "min", "max"])
     agg.columns = [f"{a}_{b}" for a, b in agg.columns]
     agg["n_seeds"] = g["seed"].nunique()
     agg["ref_relmse"] = g["ref_relmse"].first()
-    agg["ref_ok"] = g["ref_ok"].all()
+    for column in ("reference", "reference_trusted"):  # what rendered the reference, and
+        if column in runs:  # whether verdicts may be drawn against it (compare.trust)
+            agg[column] = g[column].first()
+    for m in (c[: -len("_corrected")] for c in corrected):
+        total, shared = runs[f"{m}_u"], runs[f"{m}_u_shared"]
+        own = np.sqrt(np.maximum(total**2 - shared**2, 0.0)).groupby([runs[k] for k in KEYS])
+        agg[f"{m}_u_shared"] = shared.groupby([runs[k] for k in KEYS]).mean()
+        agg[f"{m}_u"] = np.hypot(own.mean(), agg[f"{m}_u_shared"])
+        agg[f"{m}_determined"] = [
+            determined(v, u, determined_fraction)
+            for v, u in zip(agg[f"{m}_corrected_mean"], agg[f"{m}_u"], strict=True)
+        ]
+    if f"{FLAG_METRIC}_determined" in agg:
+        agg["determined"] = agg[f"{FLAG_METRIC}_determined"]
     return agg.reset_index()
+
+
+def error_columns(summary: pd.DataFrame, metric: str) -> tuple[str, str, str | None, str | None]:
+    """The summary's columns for ``metric``'s verdicts: mean, std over seeds, and the
+    reference's uncertainty of the mean with its shared part (None for a measured metric)."""
+    if f"{metric}_corrected_mean" in summary:
+        c = f"{metric}_corrected"
+        return f"{c}_mean", f"{c}_std", f"{metric}_u", f"{metric}_u_shared"
+    return f"{metric}_mean", f"{metric}_std", None, None
 
 
 def render_time(d: pd.DataFrame, column: str = "render_seconds") -> pd.Series:
@@ -165,77 +228,143 @@ def over_budget(render_seconds: float, budget: float) -> bool:
 # apart. Errors are compared as logarithms (their ratio is what matters, and methods whose
 # errors differ 40x must not tie because one of them varies between seeds); the spreads come
 # from a few seeds, so the critical value is Student's (4.3 for two seeds a side with equal
-# spreads, up to 12.7 when one spread dominates), not the normal 1.96.
+# spreads, up to 12.7 when one spread dominates), not the normal 1.96. The reference's
+# uncertainty of corrected errors adds to the seeds' spreads, as a term known exactly.
 TIE_LEVEL = 0.05
 
 
-def tied(a_mean: float, a_std: float, a_n: int, b_mean: float, b_std: float, b_n: int) -> bool:
-    """Whether Welch's t-test on log errors (Welch-Satterthwaite degrees of freedom; the
-    spread of a log as std / mean) cannot reject equal errors at TIE_LEVEL. Never with fewer
-    than two seeds on either side (no spread is known) or a non-positive mean."""
-    if min(a_n, b_n) < 2 or not (math.isfinite(a_std) and math.isfinite(b_std)):
-        return False
-    if not (a_mean > 0 and b_mean > 0):
+def tied(
+    a_mean: float,
+    a_std: float,
+    a_n: int,
+    b_mean: float,
+    b_std: float,
+    b_n: int,
+    a_u: float = 0.0,
+    b_u: float = 0.0,
+    shared_u: float = 0.0,
+) -> bool:
+    """Whether Welch's t-test (Welch-Satterthwaite degrees of freedom) cannot reject equal
+    errors at TIE_LEVEL. Means over seeds with seed spreads ``*_std`` (unknown with fewer
+    than two seeds) and, for corrected errors, the reference's uncertainty of each mean: the
+    part of each its own (``a_u``, ``b_u``) and the part shared by both (``shared_u``, which
+    moves both alike). On logarithms (the spread of a log as std / mean) when both means are
+    positive; else on the difference, where the shared part cancels. With no spread and no
+    uncertainty, only equal errors tie."""
+    seeds_known = min(a_n, b_n) >= 2 and math.isfinite(a_std) and math.isfinite(b_std)
+    logs = a_mean > 0 and b_mean > 0
+    if logs:
+        distance = abs(math.log(a_mean / b_mean))
+        va, vb = (a_std / a_mean) ** 2 / a_n, (b_std / b_mean) ** 2 / b_n
+        known = (a_u / a_mean) ** 2 + (b_u / b_mean) ** 2
+        known += (shared_u * (1 / a_mean - 1 / b_mean)) ** 2
+    else:
+        distance = abs(a_mean - b_mean)
+        va, vb = a_std**2 / a_n, b_std**2 / b_n
+        known = a_u**2 + b_u**2
+    if not seeds_known:
+        va = vb = 0.0
+    if not math.isfinite(distance) or va + vb + known == 0:
         return a_mean == b_mean
-    va, vb = (a_std / a_mean) ** 2 / a_n, (b_std / b_mean) ** 2 / b_n
-    if va + vb == 0:
-        return a_mean == b_mean
-    dof = (va + vb) ** 2 / (va**2 / (a_n - 1) + vb**2 / (b_n - 1))
-    critical = float(stats.t.ppf(1 - TIE_LEVEL / 2, dof))
-    return abs(math.log(a_mean / b_mean)) < critical * math.sqrt(va + vb)
+    if va + vb > 0:  # the reference's term is known exactly: infinite degrees of freedom
+        dof = (va + vb + known) ** 2 / (va**2 / (a_n - 1) + vb**2 / (b_n - 1))
+        critical = float(stats.t.ppf(1 - TIE_LEVEL / 2, dof))
+    else:
+        critical = float(stats.norm.ppf(1 - TIE_LEVEL / 2))
+    return distance < critical * math.sqrt(va + vb + known)
 
 
 def ranked_cells(summary: pd.DataFrame, metric: str) -> pd.DataFrame:
-    """The cells that have a mean ``metric``: the ones a budget's winner is chosen among."""
-    return summary.dropna(subset=[f"{metric}_mean"])
+    """The cells that have a mean ``metric`` (measured, and corrected where the summary has
+    it): the ones a budget's winner is chosen among."""
+    columns = {error_columns(summary, metric)[0], f"{metric}_mean"}
+    return summary.dropna(subset=[c for c in columns if c in summary])
+
+
+def _less(spread: float, part: float) -> float:
+    """A standard deviation without an independent part of it (never below zero)."""
+    return math.sqrt(max(spread**2 - part**2, 0.0)) if math.isfinite(spread) else spread
 
 
 def best_methods(summary: pd.DataFrame, metric: str) -> pd.DataFrame:
-    """The method with the lowest mean ``metric`` per scene and budget, and in ``tied_with``
-    the other methods (comma-separated) that seeds cannot tell from it. A cell that overran
-    its budget (over_budget) neither wins nor ties: it is not an equal-time result. One that
-    stopped short of it may, having had less time; a budget whose cells all overran has no
-    winner."""
-    col, std = f"{metric}_mean", f"{metric}_std"
+    """The method with the lowest mean ``metric`` (corrected where the summary has it) per
+    scene and budget; in ``tied_with`` the other methods (comma-separated) that seeds and the
+    reference's uncertainty cannot tell from it, and in ``reference_ties`` those of them that
+    the seeds alone would have told apart (the seeds' spread less the part the reference's
+    noise adds to it). A cell that overran its budget (over_budget)
+    neither wins nor ties: it is not an equal-time result. One that stopped short of it may,
+    having had less time; a budget whose cells all overran has no winner."""
+    col, std, u, shared = error_columns(summary, metric)
     valid = ranked_cells(summary, metric)
+    if "reference_trusted" in valid:  # no verdict against a reference that failed its check
+        valid = valid[valid.reference_trusted.astype(bool)]
     if "render_seconds_mean" in valid:
         in_time = [
             not over_budget(t, b)
             for t, b in zip(valid.render_seconds_mean, valid.budget, strict=True)
         ]
-        valid = valid[in_time]
+        valid = valid[np.array(in_time, dtype=bool)]  # (an empty list would pick columns)
     idx = valid.groupby(["scene", "budget"])[col].idxmin()
-    cols = ["scene", "budget", "method", col, "render_seconds_mean"]
+    cols = ["scene", "budget", "method", col, "render_seconds_mean", "reference"]
     best = valid.loc[idx, [c for c in cols if c in valid]].reset_index(drop=True)
-    ties = []
+
+    def uncertainty(row: pd.Series) -> tuple[float, float]:
+        """(own, shared) reference uncertainty of a cell's mean; zero for a measured metric."""
+        if u is None:
+            return 0.0, 0.0
+        total, common = float(row[u]), float(row[shared])
+        return math.sqrt(max(total**2 - common**2, 0.0)), common
+
+    ties, by_reference = [], []
     for i in idx:
         b = valid.loc[i]
+        b_own, common = uncertainty(b)
         rivals = valid[
             (valid.scene == b.scene) & (valid.budget == b.budget) & (valid.method != b.method)
         ]
-        ties.append(
-            ",".join(
-                str(r["method"])
-                for _, r in rivals.iterrows()
-                if std in valid and tied(b[col], b[std], b["n_seeds"], r[col], r[std], r["n_seeds"])
-            )
-        )
+        tie, reference = [], []
+        for _, r in rivals.iterrows():
+            if std not in valid:
+                continue
+            r_own, _ = uncertainty(r)
+            seeds = (b[col], b[std], b["n_seeds"], r[col], r[std], r["n_seeds"])
+            if tied(*seeds, b_own, r_own, common):
+                tie.append(str(r["method"]))
+                # The reference's noise also spreads each seed's corrected error (its own
+                # part): what the seeds would show without it is the rest of their spread.
+                alone = (b[col], _less(b[std], b_own), b["n_seeds"])
+                alone += (r[col], _less(r[std], r_own), r["n_seeds"])
+                if not tied(*alone):
+                    reference.append(str(r["method"]))
+        ties.append(",".join(tie))
+        by_reference.append(",".join(reference))
     best["tied_with"] = ties
+    best["reference_ties"] = by_reference
     return best
 
 
 def _slope_fits(
-    t: pd.Series, d: pd.DataFrame, metric: str, floor: float | None
+    t: pd.Series, d: pd.DataFrame, metric: str, ref_removed: bool
 ) -> tuple[SlopeFit, float, float]:
-    """(fit over all of d's runs, min and max of the slopes over each seed's runs alone);
-    with a floor, of the error less the floor (fit_slope_above_floor). The range is NaN
-    unless two seeds or more give a slope."""
-    times, errors, budgets = t.to_numpy(), d[metric].to_numpy(), d["budget"].to_numpy()
+    """(fit over all of d's runs, min and max of the slopes over each seed's runs alone), of
+    the errors as measured or, with ``ref_removed``, with the reference's error removed: the
+    runs' corrected errors where they have them (fit_slope_of_corrected), else the measured
+    ones less the median reference error (fit_slope_above_floor). The range is NaN unless two
+    seeds or more give a slope; the fit is NaN when the reference's error is unknown."""
+    times, budgets = t.to_numpy(), d["budget"].to_numpy()
+    errors = d[metric].to_numpy()
+    floor_column = REFERENCE_ERROR.get(metric)
 
     def fit(rows: np.ndarray) -> SlopeFit:  # rows by position
-        if floor is None:
+        if not ref_removed:
             return fit_slope_over_budgets(times[rows], errors[rows], budgets[rows])
-        return fit_slope_above_floor(times[rows], errors[rows], floor, budgets=budgets[rows])
+        if f"{metric}_corrected" in d:
+            corrected, u = d[f"{metric}_corrected"].to_numpy(), d[f"{metric}_u"].to_numpy()
+            return fit_slope_of_corrected(times[rows], corrected[rows], u[rows], budgets[rows])
+        if floor_column in d:
+            floor = float(d[floor_column].median())
+            return fit_slope_above_floor(times[rows], errors[rows], floor, budgets=budgets[rows])
+        return SlopeFit(math.nan, math.nan, math.nan, 0)
 
     seeds = d.groupby("seed").indices.values() if "seed" in d else []
     per_seed = [f.slope for f in map(fit, seeds) if math.isfinite(f.slope)]
@@ -245,9 +374,10 @@ def _slope_fits(
 
 def convergence_table(runs: pd.DataFrame, metrics: Sequence[str] = METRICS) -> pd.DataFrame:
     """One row per scene x method x metric: the slope fitted over all runs, and the range of
-    the slopes fitted to each seed's runs alone. The seeds' curves are independent, so their
-    spread shows how much a slope is worth; the points of one curve are not (each snapshot
-    continues the run before it), so a regression's own standard error would understate it."""
+    the slopes fitted to each seed's runs alone, as measured and (MSE-type metrics) with the
+    reference's error removed. The seeds' curves are independent, so their spread shows how
+    much a slope is worth; the points of one curve are not (each snapshot continues the run
+    before it), so a regression's own standard error would understate it."""
     rows = []
     for (scene, method), d in runs.groupby(["scene", "method"], sort=True):
         d = one_row_per_image(d)
@@ -255,13 +385,9 @@ def convergence_table(runs: pd.DataFrame, metrics: Sequence[str] = METRICS) -> p
         for m in metrics:
             if m not in d:
                 continue
-            f, lo, hi = _slope_fits(t, d, m, None)
-            floor = REFERENCE_ERROR.get(m)
-            g, g_lo, g_hi = (
-                _slope_fits(t, d, m, float(d[floor].median()))
-                if floor in d
-                else (None, np.nan, np.nan)
-            )
+            f, lo, hi = _slope_fits(t, d, m, False)
+            removable = m in REFERENCE_ERROR or f"{m}_corrected" in d
+            g, g_lo, g_hi = _slope_fits(t, d, m, True) if removable else (None, np.nan, np.nan)
             rows.append(
                 {
                     "scene": scene,
@@ -273,7 +399,7 @@ def convergence_table(runs: pd.DataFrame, metrics: Sequence[str] = METRICS) -> p
                     "intercept_log10": f.intercept,
                     "r2": f.r2,
                     "points": f.n,
-                    # The same fit on error minus the reference's own error (see convergence.py).
+                    # The same fit on the errors with the reference's own error removed.
                     "slope_ref_removed": g.slope if g else np.nan,
                     "slope_ref_removed_seed_min": g_lo,
                     "slope_ref_removed_seed_max": g_hi,
@@ -284,7 +410,9 @@ def convergence_table(runs: pd.DataFrame, metrics: Sequence[str] = METRICS) -> p
 
 
 def time_to_error_table(summary: pd.DataFrame, metric: str, baseline: str) -> pd.DataFrame:
-    col = f"{metric}_mean"
+    """Time each method's mean error curve (corrected where the summary has it) needs to
+    reach the baseline's error at its largest budget, and the speed-up against it."""
+    col = error_columns(summary, metric)[0]
     rows = []
     for scene, d in summary.groupby("scene", sort=True):
         base = d[d.method == baseline]
@@ -312,6 +440,7 @@ def time_to_error_table(summary: pd.DataFrame, metric: str, baseline: str) -> pd
                     "scene": scene,
                     "method": method,
                     "metric": metric,
+                    "error": "corrected" if is_corrected(summary, metric) else "measured",
                     "target": target,
                     "target_from": target_from,
                     "seconds": t,
@@ -417,27 +546,55 @@ def slope_cells(conv: pd.DataFrame, column: str = "slope") -> pd.Series:
 
 
 def overview_cells(summary: pd.DataFrame, metric: str) -> list[dict]:
-    """One dict per scene x method: cells per budget with text, best and flag marks."""
+    """One dict per scene x method: cells per budget with text (corrected mean +- std where
+    the summary has it), ``detail`` (the reference's uncertainty of that mean and the
+    measured mean beside it), best and flag marks."""
     best = best_methods(summary, metric)
     best_set = {(r.scene, r.budget, r.method) for r in best.itertuples()}
     best_set |= {
         (r.scene, r.budget, m) for r in best.itertuples() for m in r.tied_with.split(",") if m
     }
+    col, std, u, _ = error_columns(summary, metric)
     out = []
     # In the summary's own order (study_order), not alphabetically.
     for (scene, method), d in summary.groupby(["scene", "method"], sort=False):
         cells = {}
-        for r in d.itertuples():
+        for _, r in d.iterrows():
+            detail = ""
+            if u is not None:
+                detail = f"ref. ±{fmt(r[u], 2)} · measured {fmt(r[f'{metric}_mean'])}"
             cells[r.budget] = {
-                "text": fmt_pm(getattr(r, f"{metric}_mean"), getattr(r, f"{metric}_std")),
-                "mean": getattr(r, f"{metric}_mean"),
+                "text": fmt_pm(r[col], r[std] if std in r else math.nan),
+                "detail": detail,
+                "mean": r[col],
                 "best": (scene, r.budget, method) in best_set,
-                "ref_ok": bool(r.ref_ok),
+                "determined": bool(r.get("determined", True)),
                 "seconds": r.render_seconds_mean,
                 "off_budget": off_budget(r.render_seconds_mean, r.budget),
             }
-        out.append({"scene": scene, "method": method, "cells": cells})
+        out.append({"scene": scene, "method": method, "cells": cells, "note": reference_note(d)})
     return out
+
+
+def reference_note(cells: pd.DataFrame) -> str:
+    """What a scene's rows say of its reference: nothing for a Mitsuba reference that passed
+    its check; "reference: pgi's pt" for one rendered by pgi; "no trustworthy reference" for
+    a Mitsuba reference that failed it (ranked against nothing)."""
+    if "reference_trusted" in cells and not cells.reference_trusted.astype(bool).all():
+        return "no trustworthy reference"
+    if "reference" in cells:
+        source = str(cells.reference.iloc[0])
+        return "" if source == "Mitsuba" else f"reference: {source}"
+    return ""
+
+
+def flag_meaning(fraction: float = DETERMINED_FRACTION) -> str:
+    """What the ⚠ of a cell says, in words."""
+    return (
+        f"the corrected error is not determined to within ±{fraction:.0%}: the reference's "
+        f"uncertainty of it ({COVERAGE:g} standard uncertainties) is larger, or the error is "
+        "not above zero"
+    )
 
 
 def off_budget_mark(seconds: float, budget: float, averaged: bool = True) -> str:
@@ -450,14 +607,22 @@ def off_budget_mark(seconds: float, budget: float, averaged: bool = True) -> str
     )
 
 
-def overview_markdown(summary: pd.DataFrame, metric: str) -> str:
+def overview_markdown(
+    summary: pd.DataFrame, metric: str, determined_fraction: float = DETERMINED_FRACTION
+) -> str:
     budgets = sorted(summary.budget.unique())
     head = ["scene", "method", *[budget_label(b) for b in budgets]]
+    corrected = (
+        " with the reference's own error removed (in brackets: the reference's standard "
+        "uncertainty of that mean, and the mean as measured)"
+        if is_corrected(summary, metric)
+        else ""
+    )
     lines = [
-        f"{METRIC_LABELS.get(metric, metric)}, mean ± std over seeds; **bold** = best per "
-        f"scene and budget, and any method Welch's t-test on log errors at {TIE_LEVEL:g} "
-        "cannot tell from it with these seeds (a tie); ⚠ = reference error not well below "
-        "this error; "
+        f"{METRIC_LABELS.get(metric, metric)}{corrected}, mean ± std over seeds; **bold** = "
+        f"best per scene and budget, and any method Welch's t-test on log errors at "
+        f"{TIE_LEVEL:g} cannot tell from it with these seeds and this reference (a tie); "
+        f"⚠ = {flag_meaning(determined_fraction)}; "
         f"(at … s) = the snapshot's mean render time, more than {OFF_BUDGET:.0%} off its "
         "budget (over it, the cell is never bold)",
         "",
@@ -472,14 +637,22 @@ def overview_markdown(summary: pd.DataFrame, metric: str) -> str:
                 cells.append("")
                 continue
             t = f"**{c['text']}**" if c["best"] else c["text"]
-            t = t if c["ref_ok"] else t + " ⚠"
+            t = t if c["determined"] else t + " ⚠"
+            t = f"{t} ({c['detail']})" if c["detail"] else t
             cells.append(t + f" (at {fmt(c['seconds'])} s)" if c["off_budget"] else t)
-        lines.append("| " + " | ".join([row["scene"], row["method"], *cells]) + " |")
+        scene = f"{row['scene']} ({row['note']})" if row["note"] else row["scene"]
+        lines.append("| " + " | ".join([scene, row["method"], *cells]) + " |")
     return "\n".join(lines) + "\n"
 
 
-def overview_html(summary: pd.DataFrame, metric: str, link_scenes: bool = False) -> str:
-    """An HTML <table> (no page around it); classes ``best`` and ``refbad`` mark cells."""
+def overview_html(
+    summary: pd.DataFrame,
+    metric: str,
+    link_scenes: bool = False,
+    determined_fraction: float = DETERMINED_FRACTION,
+) -> str:
+    """An HTML <table> (no page around it); classes ``best`` and ``refbad`` (not determined)
+    mark cells."""
     budgets = sorted(summary.budget.unique())
     e = html.escape
     parts = [
@@ -498,6 +671,8 @@ def overview_html(summary: pd.DataFrame, metric: str, link_scenes: bool = False)
             seen.add(r["scene"])
             name = e(r["scene"])
             label = f'<a href="scene-{name}.html">{name}</a>' if link_scenes else name
+            if r["note"]:
+                label += f'<br><small class="note">{e(r["note"])}</small>'
             parts.append(f'<th class="scene" rowspan="{counts[r["scene"]]}">{label}</th>')
         parts.append(f'<th class="method">{e(r["method"])}</th>')
         for b in budgets:
@@ -509,12 +684,14 @@ def overview_html(summary: pd.DataFrame, metric: str, link_scenes: bool = False)
             title = ""
             if c["best"]:
                 cls.append("best")
-            if not c["ref_ok"]:
+            if not c["determined"]:
                 cls.append("refbad")
-                title = ' title="reference error is not well below this error"'
-            mark = ' <span class="flag">⚠</span>' if not c["ref_ok"] else ""
+                title = f' title="{e(flag_meaning(determined_fraction))}"'
+            mark = ' <span class="flag">⚠</span>' if not c["determined"] else ""
             if c["off_budget"]:
                 mark += off_budget_mark(c["seconds"], b)
+            if c["detail"]:
+                mark += f"<br><small>{e(c['detail'])}</small>"
             parts.append(f'<td class="{" ".join(cls)}"{title}>{e(c["text"])}{mark}</td>')
         parts.append("</tr>")
     parts.append("</tbody></table>")
@@ -559,13 +736,15 @@ def write_tables(
     baseline: str = "pt",
     scenes: Sequence[str] = (),
     methods: Sequence[str] = (),
+    determined_fraction: float = DETERMINED_FRACTION,
 ) -> dict[str, pd.DataFrame]:
     """Write every table into ``out_dir``, rows in the order of ``scenes`` and ``methods``
-    (study_order); return them by name."""
+    (study_order); return them by name. Cells whose corrected error is not known to within
+    ``determined_fraction`` are flagged."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     runs = study_order(runs, scenes, methods)
-    summary = study_order(summarize(runs), scenes, methods)
+    summary = study_order(summarize(runs, determined_fraction), scenes, methods)
     # The tables derived from these group alphabetically: each is put in the study's order.
     tables = {
         "runs": runs,
@@ -579,7 +758,7 @@ def write_tables(
     }
     for name, df in tables.items():
         df.to_csv(out / f"{name}.csv", index=False)
-    (out / "overview.md").write_text(overview_markdown(summary, metric))
+    (out / "overview.md").write_text(overview_markdown(summary, metric, determined_fraction))
     style = (
         "<style>body{font-family:sans-serif}td,th{padding:2px 8px;border-bottom:1px solid #ddd}"
         ".best{font-weight:bold;background:#d8f5d0}.refbad{color:#a60}</style>"
@@ -587,7 +766,7 @@ def write_tables(
     (out / "overview.html").write_text(
         f"<!doctype html><meta charset=utf-8><title>overview</title>{style}"
         f"<p>{html.escape(METRIC_LABELS.get(metric, metric))}, mean ± std over seeds</p>"
-        + overview_html(summary, metric)
+        + overview_html(summary, metric, determined_fraction=determined_fraction)
         + "\n"
     )
     md = ["# Tables", ""]

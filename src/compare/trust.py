@@ -222,3 +222,30 @@ def check_reference(
                 )
     verdict.trustworthy = not verdict.findings
     return verdict
+
+
+def combined(first: Estimate, second: Estimate) -> Estimate:
+    """The average of two independent estimates of equal weight (a reference's two halves)."""
+    mean = 0.5 * (first.mean + second.mean)
+    if first.variance is None or second.variance is None:
+        return Estimate(mean)
+    image_mean = None
+    if first.image_mean_variance is not None and second.image_mean_variance is not None:
+        image_mean = 0.25 * (first.image_mean_variance + second.image_mean_variance)
+    variance = 0.25 * (first.variance + second.variance)
+    return Estimate(mean, variance, image_mean, first.dof + second.dof)
+
+
+def verdict_record(verdict: TrustVerdict, reference: str, check: str) -> dict:
+    """A verdict as a sidecar keeps it: who was checked against what, the verdict, its
+    findings, its one line and its figures (non-finite ones as None: JSON has no NaN)."""
+    return {
+        "reference": reference,
+        "checked_against": check,
+        "trustworthy": verdict.trustworthy,
+        "findings": list(verdict.findings),
+        "line": verdict.line(reference),
+        "figures": {
+            k: (float(v) if math.isfinite(float(v)) else None) for k, v in verdict.figures.items()
+        },
+    }

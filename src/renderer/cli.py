@@ -13,6 +13,7 @@ import sys
 import threading
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from . import __version__
 from .errors import PgiError, caused_by_interrupt, printable, shorten_repr
@@ -43,6 +44,16 @@ def _positive(kind: type):
         return value
 
     return parse
+
+
+def _non_negative_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not 0 <= value < math.inf:
+        raise argparse.ArgumentTypeError(f"expected a finite value >= 0, got {text!r}")
+    return value
 
 
 def _seed(text: str) -> int:
@@ -140,24 +151,53 @@ _BIASED_WHEN_COUNTED = {
 }
 
 
+def variance_path(image: str | Path) -> Path:
+    """Where `pgi reference` writes the variance of its image's mean per value."""
+    image = Path(image)
+    return image.with_name(f"{image.stem}.var.exr")
+
+
 def cmd_reference(args: argparse.Namespace) -> int:
-    from .imageio import check_output_path, write_image_and_sidecar
+    from .fingerprint import reference_fingerprint, render_fingerprint
+    from .imageio import check_output_path, write_exr, write_image_and_sidecar
     from .methods import check_overrides
     from .progressive import Progress, check_threads
-    from .reference import render_reference
+    from .reference import CHECK_PASSES, MIN_PASSES_FOR_VARIANCE, render_reference_passes
     from .scene import load_scene
+    from .scene.sources import scene_content_digest
 
     out = check_output_path(args.output)
+    check_output_path(variance_path(out))
     overrides, _ = split_sets(args.set, "reference")
-    _refuse_overwriting_the_scene(args.scene, [out], overrides)
+    _refuse_overwriting_the_scene(args.scene, [out, variance_path(out)], overrides)
     check_threads(args.threads)
-    check_overrides("mitsuba", overrides)  # the reference is Mitsuba's (volpath or volpathmis)
+    if args.source == "mitsuba":  # Mitsuba reads neither our estimators nor our roulette
+        check_overrides("mitsuba", overrides)
     scene = load_scene(args.scene, overrides)
+    key = None
+    if args.store:  # passes are taken from it only if they rendered the same image
+        key = {
+            "scene": scene_content_digest(scene.path, overrides),
+            "overrides": list(overrides),
+            # pgi's passes depend on the whole renderer, Mitsuba's on what exports to it
+            "code": render_fingerprint() if args.source == "pgi" else reference_fingerprint(),
+        }
     bar = Progress(None, args.spp, enabled=not args.quiet)
-    image, info = render_reference(
-        scene, args.spp, seed=args.seed, threads=args.threads, on_pass=bar.update
+    acc, info = render_reference_passes(
+        scene,
+        args.spp,
+        seed=args.seed,
+        threads=args.threads,
+        on_pass=bar.update,
+        # pt's passes cost little more split finer: more of them give the check's variance
+        # more degrees of freedom (compare.trust maps its t-scores to normal ones by them)
+        min_passes=CHECK_PASSES if args.source == "pgi" else MIN_PASSES_FOR_VARIANCE,
+        store=args.store,
+        key=key,
+        source=args.source,
     )
-    bar.update(info["render_seconds"], args.spp, force=True)
+    bar.update(info["render_seconds"], acc.spp - info["spp_resumed"], force=True)
+    variance = acc.variance_of_mean()
     info = dict(
         info,
         scene=scene.name,
@@ -165,13 +205,43 @@ def cmd_reference(args: argparse.Namespace) -> int:
         resolution=[scene.film.width, scene.film.height],
         host=platform.node(),
         version=__version__,
-        spp=args.spp,
+        spp=acc.spp,
         seed=args.seed,
         overrides=overrides,
+        variance=variance_path(out).name if variance is not None else None,
     )
-    write_image_and_sidecar(out, image, info)
-    print(f"{out}: Mitsuba reference, {args.spp} spp")
+    trust = None
+    if args.source == "mitsuba" and args.check > 0:
+        trust = _check_reference(scene, acc, args)
+        info["trust"] = trust
+    if variance is not None:
+        write_exr(variance_path(out), variance, {"variance_of": out.name})
+    else:  # a variance file of an earlier render must not pass for this one's
+        variance_path(out).unlink(missing_ok=True)
+    write_image_and_sidecar(out, acc.mean, info)
+    resumed = f" ({info['spp_resumed']} of them from {args.store})" if info["spp_resumed"] else ""
+    print(f"{out}: {info['renderer']} reference, {acc.spp} spp in {acc.passes} passes{resumed}")
+    if trust is not None:
+        print(trust["line"])
     return 0
+
+
+def _check_reference(scene: Any, acc: Any, args: argparse.Namespace) -> dict[str, Any]:
+    """Check a Mitsuba reference against ``args.check`` seconds of pgi's pt (seeds of its own):
+    compare.trust's verdict, as the sidecar keeps it (``trust``)."""
+    from compare.trust import Estimate, check_reference, verdict_record
+
+    from .reference import render_check
+
+    check, check_info = render_check(scene, args.check, seed=args.seed, threads=args.threads)
+    verdict = check_reference(
+        Estimate.from_passes(acc.mean, acc.variance_of_mean(), acc.passes),
+        Estimate.from_passes(check.mean, check.variance_of_mean(), check.passes),
+        check_name="pt",
+    )
+    record = verdict_record(verdict, f"Mitsuba's reference of {scene.name}", "pgi's pt")
+    record["check"] = {k: check_info[k] for k in ("renderer", "spp", "passes", "render_seconds")}
+    return record
 
 
 def _recorded_reference_error(reference: Path, shape: tuple[int, ...]) -> dict[str, float]:
@@ -202,6 +272,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
         REF_QUALITY_FACTOR,
         average_references,
         compare_images,
+        corrected_errors,
         reference_ok,
     )
 
@@ -218,11 +289,13 @@ def cmd_compare(args: argparse.Namespace) -> int:
         raise PgiError(f"cannot compare a grey image with a colour one: {kinds}")
     test, ref = read[0][0], read[1][0]
     own: dict[str, float] = {}
+    halves: list[np.ndarray] = []
     if args.second_reference:  # two independent references: their mean, and its error
         names = (args.reference, args.second_reference)
         if np.array_equal(ref, read[2][0]) and ref.any():
             raise PgiError(f"{names[0]} and {names[1]} are the same image: the second "
                            "reference must be an independent render (another --seed)")  # fmt: skip
+        halves = [ref, read[2][0]]
         try:
             ref, own = average_references(ref, read[2][0], names)
         except ValueError as e:
@@ -231,6 +304,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
         own = _recorded_reference_error(Path(args.reference), ref.shape)
     try:
         metrics = compare_images(test, ref)
+        if halves:  # the reference's own error removed (variances from the halves alone)
+            metrics |= corrected_errors(test, *halves)
     except ValueError as e:
         raise PgiError(f"{args.test} vs {args.reference}: {e}") from None
     metrics |= own
@@ -243,16 +318,24 @@ def cmd_compare(args: argparse.Namespace) -> int:
         for key, value in metrics.items():
             print(f"{key:>16}  {value:.6g}")
     if own and not reference_ok(metrics["relmse"], own["ref_relmse"]):
+        removed = (
+            f"; relmse_corrected, {metrics['relmse_corrected']:.3g} ± "
+            f"{metrics['relmse_u']:.2g}, has it removed"
+            if "relmse_corrected" in metrics
+            else ""
+        )
         print(
             f"note: the reference has relMSE {own['ref_relmse']:.3g} of its own, not "
             f"{REF_QUALITY_FACTOR:g}x below this image's {metrics['relmse']:.3g}: it "
-            "limits this comparison (every metric includes its error)",
+            f"limits this comparison (every measured metric includes its error{removed})",
             file=sys.stderr,
         )
     return 0
 
 
 PLANNED_PREFIX = "# not yet implemented:"
+# `pgi reference --source`: renderer.reference.SOURCES, named here without importing Mitsuba.
+SOURCE_NAMES = ("mitsuba", "pgi")
 
 
 def cmd_methods(args: argparse.Namespace) -> int:
@@ -262,7 +345,8 @@ def cmd_methods(args: argparse.Namespace) -> int:
     for mid in method_ids():
         print(f"{mid:<10} {describe(mid)}")
     # Workflow configs may name these already (exclude_methods, method_args, expected winners).
-    print(f"{PLANNED_PREFIX} {', '.join(NOT_YET_IMPLEMENTED)}")
+    if NOT_YET_IMPLEMENTED:
+        print(f"{PLANNED_PREFIX} {', '.join(NOT_YET_IMPLEMENTED)}")
     return 0
 
 
@@ -361,15 +445,48 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     r.set_defaults(func=cmd_render)
 
-    ref = sub.add_parser("reference", help="render the Mitsuba 3 reference of a scene")
+    ref = sub.add_parser(
+        "reference", help="render the reference of a scene (Mitsuba 3, checked by pgi's pt)"
+    )
     scene_arg(ref)
-    ref.add_argument("--spp", type=_positive(int), required=True, help="samples per pixel")
+    ref.add_argument(
+        "--spp",
+        type=_positive(int),
+        required=True,
+        help="samples per pixel, rendered in passes of their own seeds (at least 8, whose "
+        "spread gives the variance of the mean: OUT.var.exr beside the image)",
+    )
     ref.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
     ref.add_argument(
         "--threads", type=_positive(int), help="Mitsuba threads (default: all available cores)"
     )
     ref.add_argument(
         "-o", "--output", required=True, help="output .exr (a .json sidecar is written)"
+    )
+    ref.add_argument(
+        "--source",
+        default="mitsuba",
+        choices=sorted(SOURCE_NAMES),
+        help="what renders the passes: mitsuba (default; volpath, one grey render per "
+        "channel for chromatic media) or pgi (pgi's pt, for scenes where Mitsuba's reference "
+        "is not trustworthy)",
+    )
+    ref.add_argument(
+        "--store",
+        metavar="FILE",
+        help="keep the passes in FILE (.npz) and extend them: passes it already holds for "
+        "the same scene, overrides, seed and code are used, and only the samples still "
+        "missing are rendered (a store holding more gives them all)",
+    )
+    ref.add_argument(
+        "--check",
+        type=_non_negative_float,
+        default=20.0,
+        metavar="SECONDS",
+        help="check a Mitsuba reference against SECONDS of pgi's pt (seeds of its own; "
+        "default 20, about what dense, white media need; 0: no check): one line says whether "
+        "it is trustworthy (dead pixels where pt sees light, an image mean outside pt's "
+        "confidence interval) and the sidecar keeps the verdict under `trust`",
     )
     ref.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     ref.set_defaults(func=cmd_reference)
@@ -382,7 +499,8 @@ def build_parser() -> argparse.ArgumentParser:
         nargs="?",
         help="a second, independent reference .exr (another --seed): the comparison is "
         "against their mean, and its own error is estimated from their difference (ref_relmse, "
-        "ref_mse; a quarter of halves_relmse, halves_mse). Without it, a reference the "
+        "ref_mse; a quarter of halves_relmse, halves_mse) and removed from the MSE-type "
+        "metrics (*_corrected, with standard uncertainties *_u). Without it, a reference the "
         "workflow merged from two halves brings that estimate in its JSON sidecar",
     )
     c.add_argument("--json", action="store_true", help="print JSON")

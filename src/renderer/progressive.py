@@ -67,38 +67,46 @@ def reached(target: float, render_seconds: float, last_iteration: float) -> bool
     return render_seconds + 0.5 * last_iteration >= target
 
 
-def timed_iterations(method: Any) -> Iterator[tuple[float, float]]:
+def timed_iterations(
+    method: Any, clock: Callable[[], float] | None = None
+) -> Iterator[tuple[float, float]]:
     """Runs ``method``'s iterations one after another, yielding after each the render seconds
-    so far and that iteration's own; what the caller does between them is not counted."""
+    so far and that iteration's own; what the caller does between them is not counted.
+    ``clock``: wall-clock seconds (time.perf_counter) unless another is given, such as the
+    process's CPU seconds for benchmarks on a shared machine (bench/)."""
+    clock = clock or time.perf_counter
     elapsed = 0.0
     iteration = 0
     while True:
-        start = time.perf_counter()
+        start = clock()
         method.run_iteration(iteration)
-        last = time.perf_counter() - start
+        last = clock() - start
         elapsed += last
         iteration += 1
         yield elapsed, last
 
 
-def iterate_to(method: Any, times: Sequence[float]) -> Iterator[tuple[float, float]]:
+def iterate_to(
+    method: Any, times: Sequence[float], clock: Callable[[], float] | None = None
+) -> Iterator[tuple[float, float]]:
     """Runs ``method``'s iterations and yields (time, render seconds) at the iteration end
     nearest each of ``times``, as ``render`` takes its snapshots, for measurements that write
-    no files (bench/); it stops after the last. One iteration end may serve several times."""
+    no files (bench/); it stops after the last. One iteration end may serve several times.
+    ``clock`` as timed_iterations'."""
     pending = sorted(float(t) for t in times)
     if not pending:
         return
-    for elapsed, last in timed_iterations(method):
+    for elapsed, last in timed_iterations(method, clock):
         while pending and reached(pending[0], elapsed, last):
             yield pending.pop(0), elapsed
         if not pending:
             return
 
 
-def run_for(method: Any, seconds: float) -> float:
+def run_for(method: Any, seconds: float, clock: Callable[[], float] | None = None) -> float:
     """``method``'s iterations up to the end nearest ``seconds`` of render time (at least
-    one); returns the render seconds they took."""
-    return [elapsed for _, elapsed in iterate_to(method, [seconds])][-1]
+    one); returns the render seconds they took. ``clock`` as timed_iterations'."""
+    return [elapsed for _, elapsed in iterate_to(method, [seconds], clock)][-1]
 
 
 def available_cores() -> int:

@@ -56,7 +56,8 @@ def _compare_code(*modules):
     return sorted(_relative(Path(SRC, "compare", f)) for f in files)
 
 
-MERGE_CODE = _compare_code("runs.py", "metrics.py")  # compare-run, merge-reference
+MERGE_CODE = _compare_code("runs.py", "metrics.py", "trust.py")  # compare-run, merge-reference
+PLAN_CODE = _compare_code("sizing.py", "runs.py", "metrics.py", "trust.py")  # reference-plan
 TABLE_CODE = _compare_code("tables.py", "convergence.py", "metrics.py")
 ANALYSIS_CODE = sorted(  # the report pages: all of it
     _relative(p)

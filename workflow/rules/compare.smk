@@ -6,13 +6,14 @@ rule compare:
         snapshots=lambda w: snapshot_files(w.scene, w.method, w.seed),
         ref=f"{R}/reference/{{scene}}/ref.exr",
         ref_json=f"{R}/reference/{{scene}}/ref.json",
+        # the halves whose difference removes the reference's own error (ref.json names them)
+        halves=[f"{R}/reference/{{scene}}/half{h}.exr" for h in (0, 1)],
         code=MERGE_CODE,
     output:
         f"{R}/metrics/{{scene}}/{{method}}/s{{seed}}.csv",
     params:
         budgets=",".join(PLAN.budget_tags),
         threads=PLAN.threads,
-        factor=PLAN.ref_quality_factor,
     log:
         f"{R}/logs/compare/{{scene}}/{{method}}/s{{seed}}.log",
     benchmark:
@@ -20,7 +21,7 @@ rule compare:
     shell:
         "{PY} -m compare.steps compare-run --scene {wildcards.scene} --method {wildcards.method}"
         " --seed {wildcards.seed} --threads {params.threads} --budgets {params.budgets}"
-        " --ref-factor {params.factor} --ref {input.ref:q} --ref-json {input.ref_json:q}"
+        " --ref {input.ref:q} --ref-json {input.ref_json:q}"
         " -o {output:q} {input.snapshots:q} > {log:q} 2>&1"
 
 
@@ -46,6 +47,7 @@ rule tables:
         results=R,
         scenes=",".join(PLAN.scenes),
         methods=",".join(PLAN.methods),
+        fraction=PLAN.determined_fraction,
     log:
         f"{R}/logs/tables.log",
     benchmark:
@@ -53,4 +55,5 @@ rule tables:
     shell:
         "{PY} -m compare.steps tables --results {params.results:q} --metric {params.metric}"
         " --baseline {params.baseline} --scenes {params.scenes:q} --methods {params.methods:q}"
+        " --determined-fraction {params.fraction}"
         " -o {params.out:q} {input.metrics:q} > {log:q} 2>&1"

@@ -22,7 +22,7 @@ from renderer.imageio import read_exr, read_json
 from renderer.scene.yaml_dialect import check_yaml_file
 
 from .. import tables as T
-from ..metrics import EPS, relmse_map
+from ..metrics import COVERAGE, DETERMINED_FRACTION, EPS, relmse_map
 from . import images as I  # noqa: N812
 from .plots import convergence_svg, method_colours
 
@@ -74,6 +74,11 @@ def _read_tables(folder: str | Path, spec: dict[str, Any]) -> dict[str, pd.DataF
     }
 
 
+def _names(listed: Any) -> list[str]:
+    """The methods of a comma-separated cell (empty, or NaN as a CSV reads an empty one)."""
+    return [m for m in str(listed).split(",") if m] if isinstance(listed, str) else []
+
+
 def _metric_label(m: str) -> str:
     return T.METRIC_LABELS.get(m, m)
 
@@ -116,15 +121,24 @@ def _slopes_note(reference_error_removed: bool = True) -> str:
     )
 
 
-def _legend(metric: str, factor: float) -> str:
+def _fraction(spec: dict[str, Any]) -> float:
+    return float(spec.get("determined_fraction", DETERMINED_FRACTION))
+
+
+def _legend(metric: str, fraction: float, corrected: bool = True) -> str:
+    removed = (
+        " with the reference's own error removed; under it, the reference's standard "
+        "uncertainty of that mean (ref. ±) and the mean as measured"
+        if corrected
+        else ""
+    )
     return (
-        f'<p class="note">{e(_metric_label(metric))}, mean ± standard deviation over seeds. '
-        "<b>Bold green</b>: lowest mean error for that scene and budget, and any method "
+        f'<p class="note">{e(_metric_label(metric))}{removed}, mean ± standard deviation over '
+        "seeds. <b>Bold green</b>: lowest mean error for that scene and budget, and any method "
         f"that Welch's t-test on log errors at {T.TIE_LEVEL:g} cannot tell from it with these "
-        "seeds (a tie). "
-        f'<span class="flag">⚠</span>: for at least one seed, the reference\'s own relMSE is '
-        f"not {factor:g}x below that run's relMSE, so the reference may limit what the cell "
-        "can show. "
+        "seeds and this reference (a tie). "
+        f'<span class="flag">⚠</span>: {e(T.flag_meaning(fraction))}, so the cell says '
+        "little about the method (a larger reference would). "
         f'<span class="offbudget">at … s</span>: the snapshot\'s mean render time, more than '
         f"{T.OFF_BUDGET:.0%} off its budget (a snapshot is the image at the iteration end "
         "nearest its budget; a method whose iterations are long cannot come closer), so the "
@@ -145,10 +159,17 @@ def _reading_note() -> str:
         f"(|r| + {EPS:g})); SMAPE = mean(|x − r| / (|x| + |r| + {EPS:g})), at most 1. "
         "1 − SSIM compares the images tonemapped to display sRGB "
         "(exposure 0, clipped to [0, 1]); FLIP is HDR-FLIP over its own range of exposures. "
-        "Every error is measured against the reference, so "
-        "it includes the reference's own error (estimated from its two halves, Reference "
-        "quality below; an estimate, so read it as a lower bound). Slopes "
-        "marked <i>reference error removed</i> subtract it.</p>"
+        "Every error is measured against the reference, so it includes the reference's own "
+        "error. MSE, RMSE and relMSE (also trimmed) are shown with it removed: the reference "
+        "is the mean of two independent halves A and B, and mean((x − A)(x − B)), the measured "
+        "error less the reference's own estimated from the halves, is an unbiased estimate of "
+        "the error against the truth (for relMSE to first order: its denominator is the "
+        "reference's). It can come out below zero where the reference cannot resolve the "
+        "error; each such figure comes with its standard uncertainty (ref. ±) from the "
+        "reference's noise, and the measured figure beside it. MAPE, SMAPE, HDR-FLIP and "
+        "1 − SSIM are not squared errors, so they cannot be corrected this way: they are "
+        "shown as measured, the reference's error included. Slopes marked <i>reference error "
+        "removed</i> are fitted to the corrected errors.</p>"
     )
 
 
@@ -167,8 +188,9 @@ def _methods_note(methods: list[str], bases: dict[str, str]) -> str:
     text = f'<p class="note"><b>Methods.</b> {"; ".join(items)}.'
     if "mitsuba" in seen:
         text += (
-            " The reference is Mitsuba's too (volpath, or volpathmis where a medium's "
-            "extinction differs between colour channels; each scene page names it): mitsuba "
+            " The reference is Mitsuba's too (volpath, one grey render per channel "
+            "where a medium's extinction differs between colour channels; each scene page "
+            "names it): mitsuba "
             "shares its conventions, and on most scenes its integrator, while the pgi methods "
             "are measured across two renderers, so a systematic difference between them (the "
             "parity tests bound it within their noise) would count against the pgi methods only."
@@ -176,7 +198,134 @@ def _methods_note(methods: list[str], bases: dict[str, str]) -> str:
     return text + "</p>"
 
 
+# --- the reference ----------------------------------------------------------------------------
+
+
+def _sizing_sentence(ref: dict[str, Any]) -> str:
+    """How the reference's samples were chosen (its plan), in words; "" without a plan."""
+    plan = ref.get("plan") or {}
+    if plan.get("how") == "fixed":
+        return "Its samples are fixed by the config."
+    if plan.get("how") != "sized":
+        return ""
+    text = (
+        f"Sized from a pilot of {plan.get('pilot_spp')} spp a half (its relMSE "
+        f"{T.fmt(plan.get('pilot_relmse'))}, {T.fmt(plan.get('seconds_per_spp'))} s per spp): "
+    )
+    if plan.get("best_method"):
+        text += (
+            f"target relMSE {T.fmt(plan.get('target_error'))}, {T.fmt(plan.get('target'))} x "
+            f"the best method's error at the largest budget ({e(str(plan['best_method']))}, "
+            f"at least {T.fmt(plan.get('best_error_bound'))}), which takes "
+            f"{plan.get('spp_needed')} spp a half"
+        )
+    else:
+        text += "no method's error could be bounded, so the reference takes what the cap allows"
+    cap = f"the cap of {T.fmt(plan.get('max_seconds'))} s for both halves"
+    if plan.get("cap_bound"):
+        text += (
+            f'; <span class="flag">{cap} bound it</span> at {plan.get("spp_cap")} spp a half, '
+            "so the reference is coarser than the target asks"
+        )
+    else:
+        text += f", within {cap}"
+    return text + "."
+
+
+def _trust_sentence(ref: dict[str, Any]) -> str:
+    """Whether the reference can be trusted (its check against pgi's pt, compare.trust) and,
+    where Mitsuba's could not, what rendered it instead; in HTML."""
+    trust, source = ref.get("trust") or {}, ref.get("source", "mitsuba")
+    findings = "; ".join(str(f) for f in trust.get("findings") or ())
+    if source == "pgi" and trust and not trust.get("trustworthy", True):
+        return (
+            f'<p><span class="flag">⚠ No trustworthy Mitsuba reference: {e(findings)}; '
+            "reference rendered by pgi's pt</span> (in two independent halves of their own "
+            "seeds, its own error estimated and removed as Mitsuba's would be; a Mitsuba pilot "
+            "failed the check, so the reference is unbiased by pt's construction, not "
+            "confirmed by a second renderer).</p>"
+        )
+    if source == "pgi":
+        return "<p>Reference rendered by pgi's pt, as the config asks (reference_source).</p>"
+    if trust and not trust.get("trustworthy", True):
+        return (
+            f'<p><span class="flag">⚠ No trustworthy Mitsuba reference: {e(findings)}.</span> '
+            "Methods are not ranked against it (set the scene's <code>reference_source: "
+            "pgi</code> to have pgi's pt render it).</p>"
+        )
+    if trust:
+        spp = (trust.get("check") or {}).get("spp_per_half") or []
+        of = f" (two halves of {e(str(spp[0]))} spp)" if spp and spp[0] else ""
+        return (
+            f"<p>Checked against pgi's pt{of}: no dead pixels where pt sees light, its image "
+            "mean within pt's confidence interval, its halves agreeing within their noise.</p>"
+        )
+    return ""
+
+
+def _reference_paragraph(ref: dict[str, Any]) -> str:
+    spp = ref.get("spp_per_half") or []
+    passes = ref.get("passes_per_half") or []
+    renderer = ref.get("renderer") or "Mitsuba 3"
+    variances = (
+        "the variance of each half's mean from the spread of its passes"
+        if ref.get("variances")
+        else "the variances of the halves estimated from their difference alone"
+    )
+    return _trust_sentence(ref) + (
+        f"<p>{e(renderer[:1].upper() + renderer[1:])}, two independent halves"
+        + (f" of {e(str(spp[0]))} spp each" if spp and spp[0] else "")
+        + (f" ({e(str(passes[0]))} passes)" if passes and passes[0] else "")
+        + f", {T.fmt(ref.get('render_seconds'))} s of rendering. Half-vs-half relMSE "
+        f"{T.fmt(ref.get('halves_relmse'))}; estimated relMSE of the reference (their average) "
+        f"<b>{T.fmt(ref.get('ref_relmse'))}</b> (a quarter of the half-vs-half value: each half "
+        "has error s², their difference 2s², the average s²/2). MSE-type errors are shown "
+        f"with it removed; their uncertainties use {variances}. "
+        f"{_sizing_sentence(ref)}</p>"
+    )
+
+
+def _trust_word(ref: dict[str, Any]) -> str:
+    """The index's word for a reference's check: "yes", "no: Mitsuba's failed, pt's used",
+    "no" (not ranked), or "–" (not checked)."""
+    trust = ref.get("trust") or {}
+    if not trust:
+        return "–"
+    if trust.get("trustworthy"):
+        return "yes"
+    return "Mitsuba's: no (pt's used)" if ref.get("source") == "pgi" else "no (not ranked)"
+
+
+def _reference_row(scene: str, ref: dict[str, Any], cells: pd.DataFrame) -> dict[str, Any]:
+    """A scene's row of the index's reference-quality table."""
+    plan = ref.get("plan") or {}
+    sized = plan.get("how") == "sized"
+    row = {
+        "scene": scene,
+        "spp per half": (ref.get("spp_per_half") or [None])[0],
+        "source": ref.get("source_label") or "Mitsuba",
+        "trustworthy": _trust_word(ref),
+        "sized": "to the study" if sized else ("fixed" if plan else "–"),
+        "target relMSE": plan.get("target_error") if sized else math.nan,
+        "spp needed": plan.get("spp_needed") if sized else math.nan,
+        "cap [s]": plan.get("max_seconds") if sized else math.nan,
+        "cap bound": ("yes" if plan.get("cap_bound") else "no") if sized else "–",
+        "render time [s]": ref.get("render_seconds"),
+        "half-vs-half relMSE": ref.get("halves_relmse"),
+        "reference relMSE (est.)": ref.get("ref_relmse"),
+    }
+    if "determined" in cells:
+        row["cells determined"] = f"{int(cells.determined.astype(bool).sum())} of {len(cells)}"
+    return row
+
+
 # --- scene page -------------------------------------------------------------------------------
+
+
+def _corrected_note(corrected: pd.Series, method: str, budget: str) -> str:
+    """Under an image of the grid, beside its measured relMSE: the corrected one."""
+    value = corrected.get((method, float(budget)), math.nan)
+    return f" ({T.fmt(value)} without the reference's error)" if math.isfinite(value) else ""
 
 
 def _why_absent(method: str) -> str:
@@ -218,6 +367,7 @@ def _about_scene(
             as_expected = bases.get(won, won) in expected
             tied = [m for m in str(last.tied_with or "").split(",") if m]
             tied_expected = [m for m in tied if bases.get(m, m) in expected]
+            by_reference = _names(last.get("reference_ties"))
             verdict = "as expected" if as_expected else "not among the expected"
             if not as_expected and tied_expected:
                 which = "which is" if len(tied_expected) == 1 else "which are"
@@ -227,7 +377,7 @@ def _about_scene(
                 & (summary.method == won)
                 & (summary.budget == last.budget)
             ]
-            if not cell.empty and not bool(cell.ref_ok.iloc[0]):
+            if not cell.empty and not bool(cell.get("determined", pd.Series([True])).iloc[0]):
                 verdict += '; <span class="flag">⚠</span> the reference limits this comparison'
             seconds = float(cell.render_seconds_mean.iloc[0]) if not cell.empty else 0.0
             if T.off_budget(seconds, last.budget):
@@ -235,9 +385,22 @@ def _about_scene(
             others = [m for m in tied if as_expected or m not in tied_expected]
             if others:
                 verdict += f"; tied with {e(', '.join(others))}"
-            parts.append(f" <b>Won</b> at {e(T.budget_label(last.budget))}: {e(won)} ({verdict}).")
+            if by_reference:  # not a winner: the reference cannot rank them
+                names = ", ".join([won, *by_reference])
+                parts.append(
+                    f" <b>Undecided</b> at {e(T.budget_label(last.budget))}: {e(names)} lie "
+                    f"within the reference's uncertainty of each other ({verdict}; lowest "
+                    f"mean: {e(won)})."
+                )
+            else:
+                parts.append(
+                    f" <b>Won</b> at {e(T.budget_label(last.budget))}: {e(won)} ({verdict})."
+                )
         ranked = T.ranked_cells(summary[summary.scene == scene], metric)
-        if best.empty and not ranked.empty:
+        trusted = summary[summary.scene == scene].get("reference_trusted", pd.Series([True]))
+        if not trusted.astype(bool).all():
+            parts.append(" No trustworthy reference: no method is ranked.")
+        elif best.empty and not ranked.empty:
             parts.append(" No method stayed within any budget: none won.")
         elif not best.empty and last.budget < ranked.budget.max():
             largest = T.budget_label(ranked.budget.max())
@@ -251,7 +414,7 @@ def build_scene_page(spec: dict[str, Any]) -> None:
     out = Path(spec["reports"])
     tabs = _read_tables(spec["tables"], spec)
     metric = spec["metric"]
-    factor = float(spec["factor"])
+    fraction = _fraction(spec)
     methods: list[str] = spec["methods"]
     budgets: list[str] = spec["budgets"]
     colours = method_colours(methods)
@@ -270,6 +433,11 @@ def build_scene_page(spec: dict[str, Any]) -> None:
     shown = tabs["runs"]
     shown = shown[(shown.scene == scene) & (shown.seed == spec["seed"])]
     seconds = shown.set_index(["method", "budget"])["render_seconds"]
+    corrected = (
+        shown.set_index(["method", "budget"])["relmse_corrected"]
+        if "relmse_corrected" in shown
+        else pd.Series(dtype=float)
+    )
     err = {m: {b: relmse_map(x, ref) for b, x in d.items()} for m, d in imgs.items()}
     lo, hi = I.error_range([x for d in err.values() for x in d.values()])
 
@@ -286,23 +454,14 @@ def build_scene_page(spec: dict[str, Any]) -> None:
 
     # reference quality
     body.append("<h2>Reference</h2>")
-    spp = ref_info.get("spp_per_half") or []
-    renderer = ref_info.get("renderer") or "Mitsuba 3"
-    body.append(
-        f"<p>{e(renderer[:1].upper() + renderer[1:])}, two independent halves"
-        + (f" of {e(str(spp[0]))} spp each" if spp and spp[0] else "")
-        + f". Half-vs-half relMSE {T.fmt(ref_info.get('halves_relmse'))}; estimated relMSE of "
-        f"the reference (their average) <b>{T.fmt(ref_info.get('ref_relmse'))}</b> "
-        "(a quarter of the half-vs-half value: each half has error s², their difference 2s², "
-        "the average s²/2).</p>"
-    )
+    body.append(_reference_paragraph(ref_info))
 
     summary = tabs["summary"]
     ss = summary[summary.scene == scene]
     if not ss.empty:
         body.append(f"<h2>Error at each budget ({e(_metric_label(metric))})</h2>")
-        body.append(_legend(metric, factor))
-        body.append(T.overview_html(ss, metric))
+        body.append(_legend(metric, fraction, T.is_corrected(ss, metric)))
+        body.append(T.overview_html(ss, metric, determined_fraction=fraction))
 
     # convergence
     runs = tabs["runs"]
@@ -311,8 +470,11 @@ def build_scene_page(spec: dict[str, Any]) -> None:
         body.append("<h2>Convergence</h2>")
         body.append(
             '<p class="note">Log-log error vs render time (the renderer\'s own clock, loading '
-            "excluded). Lines: mean over seeds; bands: min–max over seeds; slope: least-squares "
-            "fit over all runs (unbiased methods approach −1 for MSE-type metrics).</p>"
+            "excluded). Lines: mean over seeds, for MSE-type metrics with the reference's own "
+            f"error removed (error bars: ±{COVERAGE:g} of its standard uncertainty; dotted: "
+            "as measured; means at or below zero cannot be drawn); bands: min–max over seeds; "
+            "slope: least-squares fit over all runs (unbiased methods approach −1 for MSE-type "
+            "metrics).</p>"
         )
         body.append('<div class="plots">')
         for pm in dict.fromkeys([metric, *PLOT_METRICS]):
@@ -329,8 +491,9 @@ def build_scene_page(spec: dict[str, Any]) -> None:
             cs = sc.pivot(index="method", columns="metric", values="cell")
             cs = cs.reindex(sc.method.unique())  # pivot sorts; keep the study's order
             cs = cs[[c for c in T.METRICS if c in cs.columns]]
-            for m in T.REFERENCE_ERROR:
-                if m in cs.columns and "slope_ref_removed" in sc:
+            for m in T.METRICS:
+                removed = sc.slope_ref_removed[sc.metric == m] if "slope_ref_removed" in sc else []
+                if m in cs.columns and (m in T.REFERENCE_ERROR or pd.notna(removed).any()):
                     ref_removed = sc[sc.metric == m]
                     fixed = T.slope_cells(ref_removed, "slope_ref_removed")
                     fixed.index = ref_removed["method"]
@@ -407,7 +570,8 @@ def build_scene_page(spec: dict[str, Any]) -> None:
     # equal-time grids
     body.append("<h2>Equal-time images</h2>")
     body.append(
-        f'<p class="note">Tonemapped at {ev:+g} EV (sRGB). Error maps: per-pixel relMSE, log '
+        f'<p class="note">Tonemapped at {ev:+g} EV (sRGB). Error maps: per-pixel relMSE as '
+        "measured (a pixel's own error cannot be told from the reference's), log "
         f"scale from {T.fmt(lo)} (black) to {T.fmt(hi)} (yellow), the same for every image "
         f'on this page: <img alt="colour bar" style="vertical-align:middle;width:200px;height:12px"'
         f' src="{I.data_uri_png(I.colorbar_png(lo, hi))}"></p>'
@@ -436,7 +600,8 @@ def build_scene_page(spec: dict[str, Any]) -> None:
             )
             body.append(
                 f'<figure><img alt="{e(m)} at {e(b)} s" src="{uri}">'
-                f"<figcaption>{e(m)} · relMSE {T.fmt(rel)}{off}</figcaption></figure>"
+                f"<figcaption>{e(m)} · relMSE {T.fmt(rel)}{_corrected_note(corrected, m, b)}"
+                f"{off}</figcaption></figure>"
             )
         body.append('<div class="rowlabel">error</div><div></div>')
         for m in methods:
@@ -461,7 +626,9 @@ def build_scene_page(spec: dict[str, Any]) -> None:
         body.append(T.frame_html(st, 4))
     if not ss.empty:
         body.append("<details><summary>All metrics (mean over seeds)</summary>")
-        cols_all = ["method", "budget", *[f"{m}_mean" for m in T.METRICS if f"{m}_mean" in ss]]
+        cols_all = ["method", "budget"]
+        for m in T.METRICS:  # the corrected mean, where there is one, before the measured
+            cols_all += [c for c in (f"{m}_corrected_mean", f"{m}_mean") if c in ss]
         body.append(T.frame_html(ss[cols_all], 3))
         body.append("</details>")
 
@@ -475,7 +642,7 @@ def build_index(spec: dict[str, Any]) -> None:
     out = Path(spec["reports"])
     tabs = _read_tables(spec["tables"], spec)
     metric = spec["metric"]
-    factor = float(spec["factor"])
+    fraction = _fraction(spec)
     scenes: list[str] = spec["scenes"]
     methods: list[str] = spec["methods"]
     baseline = spec["baseline"]
@@ -507,7 +674,7 @@ def build_index(spec: dict[str, Any]) -> None:
     best = T.best_methods(summary, metric)
     body.append(f"<h2>Best method per scene and budget ({e(_metric_label(metric))})</h2>")
     budgets = sorted(summary.budget.unique())
-    ok = summary.set_index(["scene", "method", "budget"])["ref_ok"]
+    ok = summary.set_index(["scene", "method", "budget"]).get("determined", pd.Series(dtype=bool))
     ranked = T.ranked_cells(summary, metric)
     win = ['<table class="overview"><thead><tr><th>scene</th>']
     win += [f"<th>{e(T.budget_label(b))}</th>" for b in budgets]
@@ -516,6 +683,9 @@ def build_index(spec: dict[str, Any]) -> None:
         win.append(f'<tr><th class="scene"><a href="scene-{e(s)}.html">{e(s)}</a></th>')
         for b in budgets:
             r = best[(best.scene == s) & (best.budget == b)]
+            if r.empty and not refs.get(s, {}).get("trusted", True):
+                win.append('<td class="note">no trustworthy reference</td>')
+                continue
             if r.empty:
                 ran = ((ranked.scene == s) & (ranked.budget == b)).any()
                 # every cell with a value overran the budget: none is an equal-time result
@@ -526,25 +696,49 @@ def build_index(spec: dict[str, Any]) -> None:
             seconds = float(r.render_seconds_mean.iloc[0])
             if T.off_budget(seconds, b):
                 flag += T.off_budget_mark(seconds, b)
-            ties = str(r.tied_with.iloc[0]).replace(",", ", ")
-            tie = f' <span class="note">tied with {e(ties)}</span>' if ties else ""
+            by_reference = _names(r.reference_ties.iloc[0]) if "reference_ties" in r else []
+            seeds = [x for x in _names(r.tied_with.iloc[0]) if x not in by_reference]
+            tie = f' <span class="note">tied with {e(", ".join(seeds))}</span>' if seeds else ""
+            if by_reference:  # the reference cannot rank them: no winner is named
+                names = ", ".join([m, *by_reference])
+                win.append(
+                    f'<td><span class="undecided">undecided: {e(names)}</span> '
+                    '<span class="note">(within the reference\'s uncertainty; lowest '
+                    f"{T.fmt(r.iloc[0, 3])})</span>{tie}{flag}</td>"
+                )
+                continue
             win.append(f"<td>{e(m)} ({T.fmt(r.iloc[0, 3])}){tie}{flag}</td>")
         win.append("</tr>")
     win.append("</tbody></table>")
     body.append("".join(win))
 
+    if "determined" in summary:
+        flagged = int((~summary.determined.astype(bool)).sum())
+        body.append(
+            f'<p class="note">{len(summary) - flagged} of {len(summary)} cells determined '
+            f'(<span class="flag">⚠</span> on the other {flagged}: '
+            f"{e(T.flag_meaning(fraction))}). Winners are chosen on the errors with the "
+            "reference's own removed; where the reference's uncertainty alone leaves methods "
+            "unranked, the cell says <i>undecided</i> and names them.</p>"
+        )
     body.append(f"<h2>Overview: {e(_metric_label(metric))}</h2>")
-    body.append(_legend(metric, factor))
-    body.append(T.overview_html(summary, metric, link_scenes=True))
+    body.append(_legend(metric, fraction, T.is_corrected(summary, metric)))
+    body.append(T.overview_html(summary, metric, link_scenes=True, determined_fraction=fraction))
     for m in T.METRICS:
         if m != metric and f"{m}_mean" in summary:
             body.append(f"<details><summary>{e(_metric_label(m))}</summary>")
             body.append(
                 '<p class="note">Bold: lowest mean of this metric (and ties). '
-                '<span class="flag">⚠</span> is the flag of the table above, computed from '
+                + (
+                    "With the reference's own error removed (ref. ±: its uncertainty; the "
+                    "measured mean beside it). "
+                    if T.is_corrected(summary, m)
+                    else "As measured: this metric cannot be corrected for the reference's error. "
+                )
+                + '<span class="flag">⚠</span> is the flag of the table above, computed from '
                 "relMSE in every table.</p>"
             )
-            body.append(T.overview_html(summary, m, link_scenes=True))
+            body.append(T.overview_html(summary, m, link_scenes=True, determined_fraction=fraction))
             body.append("</details>")
 
     # speed-up / time to error
@@ -554,9 +748,14 @@ def build_index(spec: dict[str, Any]) -> None:
         body.append(f"<h2>Time to reach the target error, and speed-up vs {e(baseline)}</h2>")
         body.append(
             f'<p class="note">Target per scene: {e(_metric_label(metric))} reached by '
-            f"{e(baseline)} at its largest budget (⚠ where that cell is flagged: the target "
-            "then lies near the reference's own error, and the times to reach it say little). "
-            "Seconds of render time, interpolated log-log between budgets; "
+            f"{e(baseline)} at its largest budget"
+            + (
+                ", all errors with the reference's own removed (⚠ where that cell is not "
+                "determined: the target is then uncertain, and the times to reach it say little). "
+                if T.is_corrected(summary, metric)
+                else " (⚠ where that cell is flagged). "
+            )
+            + "Seconds of render time, interpolated log-log between budgets; "
             "* = extrapolated from the fitted slope (with three budgets or more spanning 4x; "
             "at most 4x outside the measured times; "
             "beyond that ≤ first budget or ≥ last budget, as measured). "
@@ -576,8 +775,8 @@ def build_index(spec: dict[str, Any]) -> None:
             flag = (
                 ""
                 if target_ok
-                else ' <span class="flag" title="the target is a flagged cell: near the '
-                "reference's own error\">⚠</span>"
+                else ' <span class="flag" title="the target is a flagged cell: its corrected '
+                'error is not determined">⚠</span>'
             )
             rows.append(f'<tr><th class="scene">{e(s)}{flag}</th>')
             for m in methods:
@@ -606,8 +805,9 @@ def build_index(spec: dict[str, Any]) -> None:
         cm = conv[conv.metric == metric]
         body.append(f"<h2>Convergence slopes ({e(_metric_label(metric))} vs time, log-log)</h2>")
         columns = ["slope"]
-        if metric in T.REFERENCE_ERROR and "slope_ref_removed" in cm:
-            columns.append("slope_ref_removed")
+        removable = metric in T.REFERENCE_ERROR or T.is_corrected(summary, metric)
+        if removable and "slope_ref_removed" in cm:
+            columns.insert(0, "slope_ref_removed")  # the corrected figure first
         body.append(_slopes_note(len(columns) > 1))
         for col in columns:
             c = cm.assign(cell=T.slope_cells(cm, col)).pivot(
@@ -633,21 +833,18 @@ def build_index(spec: dict[str, Any]) -> None:
 
     body.append("<h2>Reference quality</h2>")
     rq = pd.DataFrame(
-        [
-            {
-                "scene": s,
-                "spp per half": (r.get("spp_per_half") or [None])[0],
-                "half-vs-half relMSE": r.get("halves_relmse"),
-                "reference relMSE (est.)": r.get("ref_relmse"),
-                "flagged cells": int((~summary[summary.scene == s].ref_ok.astype(bool)).sum()),
-            }
-            for s, r in ((s, refs[s]) for s in scenes if s in refs)  # the study's order
-        ]
-    )
+        [_reference_row(s, r, summary[summary.scene == s]) for s, r in refs.items()]
+    ).set_index("scene")
+    rq = rq.reindex([s for s in scenes if s in refs]).reset_index()  # the study's order
     body.append(
-        '<p class="note">The reference is the average of two independent Mitsuba renders; its '
-        "relMSE is estimated as a quarter of the relMSE between the halves. A cell is flagged "
-        f"when this is not {factor:g}x below the cell's relMSE.</p>"
+        '<p class="note">The reference is the average of two independent renders (halves); its '
+        "relMSE is estimated as a quarter of the relMSE between the halves, and removed from "
+        "every MSE-type error. A reference sized by the study aims at its target (a fraction "
+        "of the best method's error at the largest budget, bounded from below from the "
+        "study's own renders and a pilot) under a cap on its render time: <i>cap bound</i> "
+        "says where the cap decided, so that the reference is coarser than its target. Each "
+        "scene page says more. Cells determined: those whose corrected relMSE is known to "
+        f"within ±{fraction:.0%}.</p>"
     )
     body.append(T.frame_html(rq, 3))
 

@@ -14,8 +14,15 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.ticker import NullLocator  # noqa: E402
 
-from ..convergence import fit_slope_over_budgets  # noqa: E402
-from ..tables import METRIC_LABELS, listed_first, one_row_per_image, render_time  # noqa: E402
+from ..convergence import fit_slope_of_corrected, fit_slope_over_budgets  # noqa: E402
+from ..metrics import COVERAGE  # noqa: E402
+from ..tables import (  # noqa: E402
+    METRIC_LABELS,
+    listed_first,
+    one_row_per_image,
+    render_time,
+    value_column,
+)
 
 plt.rcParams["svg.fonttype"] = "none"  # keep text as text: smaller, searchable
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "h")
@@ -34,13 +41,17 @@ def convergence_svg(
     ref_error: float | None = None,
 ) -> str:
     """Mean error over seeds vs mean render time per method, min-max band over seeds,
-    fitted slope in the legend, and the reference's own error as a dashed line. Runs whose
-    error is undefined (NaN, e.g. 1 - SSIM of images under 11 pixels) are left out; an error
-    of exactly 0 counts in the means, and only means above 0 are drawn (log axis). With
-    nothing to draw the figure says so."""
-    values = pd.to_numeric(runs[metric], errors="coerce")
+    fitted slope in the legend, and the reference's own error as a dashed line. Where the
+    runs have ``metric`` with the reference's error removed, that is drawn, with error bars
+    of COVERAGE times the reference's uncertainty of the mean and the measured mean dotted.
+    Runs whose error is undefined (NaN, e.g. 1 - SSIM of images under 11 pixels) are left
+    out; an error of exactly 0 counts in the means, and only means above 0 are drawn (log
+    axis). With nothing to draw the figure says so."""
+    column = value_column(runs, metric)
+    corrected = column != metric
+    values = pd.to_numeric(runs[column], errors="coerce")
     runs = runs[np.isfinite(values)]
-    if not (runs[metric] > 0).any():
+    if not (runs[column] > 0).any():
         return _no_data_svg(title, "no finite positive values to plot on a log scale")
     fig, ax = plt.subplots(figsize=(7.6, 4.2), dpi=100)
     # A marker per method as well as a colour: curves that coincide (pm and sppm) stay apart.
@@ -50,25 +61,39 @@ def convergence_svg(
         t_all = render_time(d)
         d = d.assign(t=t_all)
         g = d.groupby("budget")
-        t = g["t"].mean()
-        mean, lo, hi = g[metric].mean(), g[metric].min(), g[metric].max()
+        t_all, measured = g["t"].mean(), g[metric].mean()
+        mean, lo, hi = g[column].mean(), g[column].min(), g[column].max()
         drawn = mean > 0
-        t, mean, lo, hi = t[drawn], mean[drawn], lo[drawn].where(lo[drawn] > 0), hi[drawn]
+        t, mean, lo, hi = t_all[drawn], mean[drawn], lo[drawn].where(lo[drawn] > 0), hi[drawn]
         one = one_row_per_image(d)
-        fit = fit_slope_over_budgets(one["t"].to_numpy(), one[metric].to_numpy(), one["budget"])
+        if corrected:
+            fit = fit_slope_of_corrected(
+                one["t"], one[column], one[f"{metric}_u"], budgets=one["budget"]
+            )
+        else:
+            fit = fit_slope_over_budgets(one["t"].to_numpy(), one[column].to_numpy(), one["budget"])
         slope = f"{fit.slope:+.2f}" if math.isfinite(fit.slope) else "n/a"
         c = colours.get(method, None)
         ax.plot(t, mean, "-", marker=markers[method], color=c, lw=1.6, ms=5, mfc="none",
                 mew=1.3, label=f"{method} (slope {slope})")  # fmt: skip
+        if corrected:
+            u = g[f"{metric}_u"].mean()[drawn]
+            ax.errorbar(t, mean, yerr=[np.minimum(COVERAGE * u, 0.999 * mean), COVERAGE * u],
+                        fmt="none", ecolor=c, elinewidth=1, capsize=2)  # fmt: skip
+            shown = measured > 0
+            ax.plot(t_all[shown], measured[shown], ":", color=c, lw=1)
         if d["seed"].nunique() > 1:
             ax.fill_between(t, lo, hi, color=c, alpha=0.18, lw=0)
     if ref_error is not None and math.isfinite(ref_error) and ref_error > 0:
         ax.axhline(ref_error, color="0.3", ls="--", lw=1, label="reference's own error")
+    if corrected:
+        ax.plot([], [], ":", color="0.3", lw=1, label="as measured")
     ax.set_xscale("log")
     ax.set_yscale("log")
     # Sizes for the page, which shows the figure at about 560 of its 760 pixels.
     ax.set_xlabel("render time [s]", fontsize=12)
-    ax.set_ylabel(METRIC_LABELS.get(metric, metric), fontsize=12)
+    removed = " (reference error removed)" if corrected else ""
+    ax.set_ylabel(METRIC_LABELS.get(metric, metric) + removed, fontsize=12)
     ax.tick_params(labelsize=11)
     ax.set_title(title, fontsize=13)
     ax.grid(True, which="both", alpha=0.25)

@@ -30,10 +30,12 @@ constexpr uint64_t kGatherPaths = 0x4761746865725061ull;   // "GatherPa": pm's a
 constexpr uint64_t kCameraPaths = 0x43616d6572615061ull;   // "CameraPa": camera subpaths (bdpt)
 constexpr uint64_t kBdptConnections = 0x42647074436f6e6eull;  // "BdptConn": bdpt's connections
 constexpr uint64_t kBeamGatherPaths = 0x5bd1e995b5ull;     // ppb's camera paths
+constexpr uint64_t kVirtualLightGather = 0x564c476174686572ull;  // "VLGather": vpl's, vsl's camera paths
 constexpr uint64_t kHero = 0x4865726f00000000ull;          // "Hero": a path's hero channel
 constexpr uint64_t kFork = 0x466f726b00000000ull;          // "Fork" + n: Sampler::fork's children
-constexpr uint64_t kAll[] = {kLightPaths,      kConnections, kGatherPaths, kCameraPaths,
-                             kBdptConnections, kBeamGatherPaths, kHero,     kFork};
+constexpr uint64_t kAll[] = {kLightPaths,      kConnections,     kGatherPaths,        kCameraPaths,
+                             kBdptConnections, kBeamGatherPaths, kVirtualLightGather, kHero,
+                             kFork};
 constexpr bool all_distinct() {
     for (size_t i = 0; i < std::size(kAll); ++i)
         for (size_t j = i + 1; j < std::size(kAll); ++j)

@@ -64,6 +64,14 @@ inline Vec3 square_to_uniform_cone(const Vec3 &axis, double cos_cutoff, double u
     return direction_around(axis, 1 - u1 * (1 - cos_cutoff), u2);
 }
 inline double square_to_uniform_cone_pdf(double cos_cutoff) { return 1 / (2 * kPi * (1 - cos_cutoff)); }
+// The same distribution for a cone given by one_minus_cos = 1 - cos(cutoff) in (0, 2]: the
+// sine comes from 1 - cos(theta) directly, so a narrow cone (a far sphere's, vsl.h) keeps its
+// digits where cos(theta) would round to 1.
+inline Vec3 square_to_uniform_narrow_cone(const Vec3 &axis, double one_minus_cos, double u1, double u2) {
+    const double a = u1 * one_minus_cos;
+    const double sin_theta = std::sqrt(std::max(0.0, a * (2 - a))), phi = 2 * kPi * u2;
+    return Frame(axis).to_world({sin_theta * std::cos(phi), sin_theta * std::sin(phi), 1 - a});
+}
 
 // Piecewise-constant distribution over n items, sampled by inverting its CDF.
 class Distribution1D {

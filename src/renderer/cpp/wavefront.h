@@ -287,13 +287,16 @@ public:
                 r.contribution *= transmittance(m, r.origin - r.dir * r.lead, r.dir, t + r.lead, r.rng, counts);
                 if (track_flights_) r.tau += flight_depth(m, r.origin - r.dir * r.lead, r.dir, t + r.lead);
             }
-            if (!blocked) {
+            auto arrive = [&] {
                 r.live = false;
-                if (is_black(r.contribution)) continue;
+                if (is_black(r.contribution)) return;
                 if constexpr (std::is_invocable_v<Deliver, int64_t, const RGB &, double>)
                     deliver(r.receiver, r.contribution, r.tau);
                 else
                     deliver(r.receiver, r.contribution);
+            };
+            if (!blocked) {
+                arrive();
                 continue;
             }
             if (is_black(r.contribution)) {  // nothing left to carry through the boundary
@@ -303,7 +306,12 @@ public:
             const Triangle &T = scene.triangles[tri];
             Vec3 p = r.origin + r.dir * t;
             r.medium = T.medium_after(r.medium, r.dir);
+            const Vec3 travelled = r.dir;
             r.restart_at(scene.spawn(p, tri, r.dir));
+            // A target (a point in a medium) nearer the boundary than its offset: the restart
+            // passed it, and restarting towards it would cross the boundary back and forth
+            // for ever. It is reached (the sliver's transmittance is left out).
+            if (!r.to_infinity && dot(r.target - r.origin, travelled) <= 0) arrive();
         }
         stats += counts;
     }

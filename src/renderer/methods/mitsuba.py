@@ -39,8 +39,8 @@ class MitsubaVolpath:
         self.method_params = {"spp_per_iteration": spp}
         self.mi = import_mitsuba()
         set_threads(threads)
-        # volpath, what a user would run, even where the references take volpathmis
-        # (chromatic extinction; docs/methods.md): the sidecar says which
+        # volpath, what a user would run, even where the references render chromatic media
+        # channel by channel (docs/methods.md): the sidecar says which
         self.integrator = "volpath"
         self.scene = load_mitsuba_scene(scene, self.integrator)
         self.seed, self.spp_per_iteration = seed, spp

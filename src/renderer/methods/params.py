@@ -125,6 +125,17 @@ class MethodParams:
         self.used[key] = self.params[key]
         return self.params[key]
 
+    def choice(self, key: str, default: str, options: Iterable[str]) -> str:
+        """One of the words ``options``."""
+        options = tuple(options)
+        if key not in self.params:
+            self.used[key] = default
+            return default
+        if self.params[key] not in options:
+            self.fail(key, " or ".join(options))
+        self.used[key] = self.params[key]
+        return self.params[key]
+
     def number(
         self,
         key: str,
