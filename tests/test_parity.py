@@ -26,7 +26,7 @@ from parity import (
     ALPHA,
     Estimate,
     agreement,
-    assert_block_check_has_power,
+    assert_multiscale_check_has_power,
     darken_one_block,
     mean_agrees,
     mitsuba,
@@ -169,7 +169,7 @@ def test_a_loss_in_one_quadrant_fails_the_block_check(estimates):
     image: 5 % of the light taken from any one quadrant, or moved to the opposite one, fails it
     (10 % on cbox-fog-depth-3, whose noisiest quadrant gave |z| 2.6 for 5 %)."""
     name, a, b = estimates
-    assert_block_check_has_power(a, b, name, 0.10 if name == "cbox-fog-depth-3" else 0.05)
+    assert_multiscale_check_has_power(a, b, name, 0.10 if name == "cbox-fog-depth-3" else 0.05)
 
 
 def test_grey_renders_per_channel_agree_with_volpathmis():

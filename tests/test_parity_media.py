@@ -13,7 +13,7 @@ Power: the sample counts are sized so that our images scaled by 0.97 fail the im
 check in every case (test_*_bias_fails), except the point light inside a grid, where paths
 scattering next to the light make the estimates heavy-tailed: 0.95 fails there. The block
 check (mean, quadrants, 4x4 blocks) fails with 5 % of the light taken from any one quadrant,
-or moved to the opposite one (parity.assert_block_check_has_power), where BLOCK_LOSS says no
+or moved to the opposite one (parity.assert_multiscale_check_has_power), where BLOCK_LOSS says no
 more: its noisiest quadrant resolves 7 % on smoke and fog-perlin (5 % gave |z| 3.7-4.1 against
 a bound of 4.46), 8 % with the camera in the tank and the point light in the grid (3.5 and
 3.2).
@@ -27,7 +27,7 @@ import yaml
 from conftest import SCENES, load_small
 from parity import (
     Estimate,
-    assert_block_check_has_power,
+    assert_multiscale_check_has_power,
     mean_agrees,
     mitsuba,
     multiscale_agreement,
@@ -86,7 +86,7 @@ def test_blocks_match_mitsuba(estimates):
     name, a, b = estimates
     agrees, detail = multiscale_agreement(a, b)
     assert agrees, f"{name}: {detail}"
-    assert_block_check_has_power(a, b, name, BLOCK_LOSS.get(name.split("/")[0], 0.05))
+    assert_multiscale_check_has_power(a, b, name, BLOCK_LOSS.get(name.split("/")[0], 0.05))
 
 
 # --------------------------------------------------------------------------- configurations
@@ -175,7 +175,7 @@ def test_configuration_matches_mitsuba(config_estimates):
     assert agrees, f"{name}: {result}"
     agrees, detail = multiscale_agreement(a, b)
     assert agrees, f"{name}: {detail}"
-    assert_block_check_has_power(a, b, name, BLOCK_LOSS.get(name.split("/")[0], 0.05))
+    assert_multiscale_check_has_power(a, b, name, BLOCK_LOSS.get(name.split("/")[0], 0.05))
 
 
 def test_configuration_bias_fails(config_estimates):

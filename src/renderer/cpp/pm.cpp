@@ -208,12 +208,17 @@ RGB PhotonMapping::beam_estimate(const GatherPath &p, double t_hit, const Bounda
     return sum * (kernel * inv_light_paths_);
 }
 
-// Pilot: the distance within which the segment's k nearest photons of its medium lie.
-double PhotonMapping::pilot_segment(const GatherPath &p, double t_hit) const {
+// Pilot: the distance within which the k nearest photons of its medium lie around the segment
+// up to a free flight along it (pilot_flight); none where the flight crosses the segment.
+double PhotonMapping::pilot_segment(const GatherPath &p, double t_hit, Sampler rng, double &free_path) const {
     if (pilot_volume_k_ == 0) return kNoRecord;
     double tmax = std::isfinite(t_hit) ? t_hit + p.lead : 1e30;
+    const Vec3 origin = segment_origin(p);
+    const PilotFlight flight = pilot_flight(scene_->media[p.medium], origin, p.dir, tmax, rng, p.rng);
+    if (!std::isfinite(flight.t)) return kNoRecord;
+    free_path = flight.free_path;
     return volume_tree_.kth_nearest_to_segment(
-        segment_origin(p), p.dir, tmax, pilot_volume_k_, pilot_max_radius_[size_t(p.medium) + 1], [&](uint32_t i) {
+        origin, p.dir, flight.t, pilot_volume_k_, pilot_max_radius_[size_t(p.medium) + 1], [&](uint32_t i) {
             const PathVertex &ph = volume_photons_[i];
             return ph.medium == p.medium && depth_.allows(ph.depth + p.specular);
         });
@@ -248,6 +253,7 @@ size_t PhotonMapping::shade(const Hits &hits) {
     const bool pilot = pilot_;
     if (pilot) {
         pilot_slots_.assign(2 * hits.count, kNoRecord);
+        pilot_slot_free_path_.assign(hits.count, kNoRecord);
         pilot_slot_medium_.assign(hits.count, -1);
     }
     const double surface_radius = surface_radius_;
@@ -260,7 +266,7 @@ size_t PhotonMapping::shade(const Hits &hits) {
         int tri = hits.prim[k];
         double t_hit = tri >= 0 ? double(hits.tfar[k]) : kInf;
         if (p.medium >= 0 && pilot) {
-            pilot_slots_[2 * size_t(k)] = pilot_segment(p, t_hit);
+            pilot_slots_[2 * size_t(k)] = pilot_segment(p, t_hit, p.rng.fork(), pilot_slot_free_path_[size_t(k)]);
             pilot_slot_medium_[size_t(k)] = p.medium;
         } else if (p.medium >= 0) {
             MediumStats local;
@@ -307,8 +313,11 @@ size_t PhotonMapping::shade(const Hits &hits) {
     if (pilot) {
         // In hit order: the same records whatever the thread count.
         for (size_t k = 0; k < hits.count; ++k) {
-            if (pilot_slots_[2 * k] != kNoRecord)
-                pilot_results_[size_t(pilot_slot_medium_[k]) + 1].distances.push_back(pilot_slots_[2 * k]);
+            if (pilot_slots_[2 * k] != kNoRecord) {
+                auto &result = pilot_results_[size_t(pilot_slot_medium_[k]) + 1];
+                result.distances.push_back(pilot_slots_[2 * k]);
+                result.free_paths.push_back(pilot_slot_free_path_[k]);
+            }
             if (pilot_slots_[2 * k + 1] != kNoRecord) pilot_results_[0].distances.push_back(pilot_slots_[2 * k + 1]);
         }
     }

@@ -78,6 +78,7 @@ struct PhotonGatherStats {
 // bounding-sphere radius of the photons the kernel could gather (0: none).
 struct RadiusPilotResult {
     std::vector<double> distances;
+    std::vector<double> free_paths;  // of the segment queries: 1 / sigma_t where their flights ended
     double extent = 0;
 };
 
@@ -124,7 +125,7 @@ private:
     RGB beam_estimate(const GatherPath &p, double t_hit, const BoundaryPlane &exit, double radius, Sampler rng,
                       MediumStats &ms, uint64_t &accepted) const;
     BoundaryPlane entry_plane(const GatherPath &p) const;
-    double pilot_segment(const GatherPath &p, double t_hit) const;
+    double pilot_segment(const GatherPath &p, double t_hit, Sampler rng, double &free_path) const;
     double pilot_surface(const GatherPath &p, int tri, const Vec3 &x) const;
     RGB surface_estimate(const GatherPath &p, int tri, const Vec3 &x, double radius, uint64_t &accepted) const;
 
@@ -148,6 +149,7 @@ private:
     // Per hit of a shade pass: its segment's distance and its surface's (kNoRecord: none).
     static constexpr double kNoRecord = -1;
     std::vector<double> pilot_slots_;
+    std::vector<double> pilot_slot_free_path_;  // the mean free path where its flight ended
     std::vector<int> pilot_slot_medium_;
     std::vector<GatherPath> paths_;
     std::vector<int32_t> active_;

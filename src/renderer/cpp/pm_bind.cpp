@@ -83,13 +83,15 @@ static void bind_pm(nb::module_ &m) {
         .def("set_pilot", &PhotonMapping::set_pilot, "surface_neighbours"_a, "volume_neighbours"_a,
              "extent_fraction"_a, "path_stride"_a)
         .def_prop_ro("pilot", &PhotonMapping::pilot)
-        // (distances, extent) of a pilot pass: kernel -1 the surfaces', m medium m's.
+        // (distances, extent, free paths) of a pilot pass: kernel -1 the surfaces', m medium m's.
         .def("pilot_result",
              [](const PhotonMapping &g, int kernel) {
                  const RadiusPilotResult &r = g.pilot_result(kernel);
                  std::vector<double> d = r.distances;
                  size_t n = d.size();
-                 return nb::make_tuple(to_numpy(std::move(d), {n}), r.extent);
+                 std::vector<double> f = r.free_paths;
+                 size_t nf = f.size();
+                 return nb::make_tuple(to_numpy(std::move(d), {n}), r.extent, to_numpy(std::move(f), {nf}));
              },
              "kernel"_a)
         .def_prop_ro("kernels",

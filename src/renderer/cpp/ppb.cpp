@@ -240,10 +240,15 @@ RGB ProgressivePhotonBeams::gather(BeamGatherPath &p, double t_end, const Bounda
     return sum * beam_scales_[size_t(p.medium)];
 }
 
-// Pilot: the distance within which the segment's k nearest beams lie.
-double ProgressivePhotonBeams::pilot_beams(const BeamGatherPath &p, double t_end) const {
+// Pilot: the distance within which the k nearest beams lie around the segment up to a free
+// flight along it (pilot_flight); none where the flight crosses the segment.
+double ProgressivePhotonBeams::pilot_beams(const BeamGatherPath &p, double t_end, Sampler rng, double &free_path) const {
     if (pilot_beam_k_ == 0 || !depth_.allows(1 + p.depth)) return kNoRecord;
-    return bvh_.kth_nearest(segment_origin(p), p.dir, t_end, pilot_beam_k_, pilot_max_radius_[size_t(p.medium) + 1],
+    const Vec3 origin = segment_origin(p);
+    const PilotFlight flight = pilot_flight(scene_->media[p.medium], origin, p.dir, t_end, rng, p.rng);
+    if (!std::isfinite(flight.t)) return kNoRecord;
+    free_path = flight.free_path;
+    return bvh_.kth_nearest(origin, p.dir, flight.t, pilot_beam_k_, pilot_max_radius_[size_t(p.medium) + 1],
                             [&](int32_t index) {
                                 const Beam &b = bvh_.beams()[size_t(index)];
                                 return b.medium == p.medium && depth_.allows(b.depth + 1 + p.depth);
@@ -267,6 +272,7 @@ size_t ProgressivePhotonBeams::shade(const Hits &hits) {
     shadow_.open(hits.count);
     if (pilot_) {
         pilot_slots_.assign(2 * hits.count, kNoRecord);
+        pilot_slot_free_path_.assign(hits.count, kNoRecord);
         pilot_slot_medium_.assign(hits.count, -1);
     }
 #pragma omp parallel for schedule(dynamic, 64) num_threads(threads_) reduction(+ : lookups, pairs)
@@ -287,7 +293,7 @@ size_t ProgressivePhotonBeams::shade(const Hits &hits) {
                     p.radiance += p.throughput * gather(p, t_end, end_plane, local, pairs);
                     return;
                 }
-                pilot_slots_[2 * size_t(k)] = pilot_beams(p, t_end);
+                pilot_slots_[2 * size_t(k)] = pilot_beams(p, t_end, p.rng.fork(), pilot_slot_free_path_[size_t(k)]);
                 pilot_slot_medium_[size_t(k)] = p.medium;
             };
             if (!p.gathering) {
@@ -324,8 +330,11 @@ size_t ProgressivePhotonBeams::shade(const Hits &hits) {
     if (pilot_) {
         // In hit order: the same records whatever the thread count.
         for (size_t k = 0; k < hits.count; ++k) {
-            if (pilot_slots_[2 * k] != kNoRecord)
-                pilot_results_[size_t(pilot_slot_medium_[k]) + 1].distances.push_back(pilot_slots_[2 * k]);
+            if (pilot_slots_[2 * k] != kNoRecord) {
+                auto &result = pilot_results_[size_t(pilot_slot_medium_[k]) + 1];
+                result.distances.push_back(pilot_slots_[2 * k]);
+                result.free_paths.push_back(pilot_slot_free_path_[k]);
+            }
             if (pilot_slots_[2 * k + 1] != kNoRecord) pilot_results_[0].distances.push_back(pilot_slots_[2 * k + 1]);
         }
     }

@@ -72,6 +72,7 @@ struct BeamGatherPath : CameraPath {
 // bound), and the bounding-sphere radius of what the kernel could gather (0: nothing).
 struct BeamPilotResult {
     std::vector<double> distances;
+    std::vector<double> free_paths;  // of the segment queries: 1 / sigma_t where their flights ended
     double extent = 0;
 };
 
@@ -140,7 +141,7 @@ public:
 private:
     RGB gather(BeamGatherPath &p, double t_end, const BoundaryPlane &exit, MediumStats &local, uint64_t &pairs) const;
     BoundaryPlane entry_plane(const BeamGatherPath &p) const;
-    double pilot_beams(const BeamGatherPath &p, double t_end) const;
+    double pilot_beams(const BeamGatherPath &p, double t_end, Sampler rng, double &free_path) const;
     double pilot_photons(const BeamGatherPath &p, int tri, const Vec3 &x) const;
     void scatter_on_surface(BeamGatherPath &p, size_t slot, int tri, const Vec3 &x);
     RGB gather_photons(const BeamGatherPath &p, int tri, const Vec3 &x) const;
@@ -176,6 +177,7 @@ private:
     std::vector<BeamPilotResult> pilot_results_;
     static constexpr double kNoRecord = -1;
     std::vector<double> pilot_slots_;
+    std::vector<double> pilot_slot_free_path_;  // the mean free path where its flight ended
     std::vector<int> pilot_slot_medium_;
     BeamStats stats_;
     MediumStats medium_stats_;

@@ -95,13 +95,15 @@ static void bind_ppb(nb::module_ &m) {
         .def("set_pilot", &ProgressivePhotonBeams::set_pilot, "surface_neighbours"_a, "beam_neighbours"_a,
              "extent_fraction"_a, "path_stride"_a)
         .def_prop_ro("pilot", &ProgressivePhotonBeams::pilot)
-        // (distances, extent) of a pilot pass: kernel -1 the surface photons', m medium m's beams'.
+        // (distances, extent, free paths) of a pilot pass: kernel -1 the surface photons', m medium m's beams'.
         .def("pilot_result",
              [](const ProgressivePhotonBeams &pb, int kernel) {
                  const BeamPilotResult &r = pb.pilot_result(kernel);
                  std::vector<double> d = r.distances;
                  size_t n = d.size();
-                 return nb::make_tuple(to_numpy(std::move(d), {n}), r.extent);
+                 std::vector<double> f = r.free_paths;
+                 size_t nf = f.size();
+                 return nb::make_tuple(to_numpy(std::move(d), {n}), r.extent, to_numpy(std::move(f), {nf}));
              },
              "kernel"_a)
         .def("surface_radius", &ProgressivePhotonBeams::surface_radius, "iteration"_a)

@@ -27,10 +27,11 @@ DEFAULT_LIGHT_PATHS = 1 << 16
 # its copy in a photon map and the kd-tree), so the default bounds an iteration at about 1.7 GB.
 DEFAULT_MAX_RECORDS = 1 << 23
 # Photons a typical query gathers per iteration at the derived radii (methods/radii.py): on
-# surfaces, and along a camera segment in a medium. Chosen so that cbox-fog keeps about the
-# radii it had when they were 0.02 of the scene's radius (docs/methods.md, "Default radii").
+# surfaces, and along a camera segment up to a free flight in a medium. Chosen so that
+# cbox-fog keeps about the radii it had when they were 0.02 of the scene's radius
+# (docs/methods.md, "Default radii").
 DEFAULT_SURFACE_NEIGHBOURS = 16
-DEFAULT_VOLUME_NEIGHBOURS = 48
+DEFAULT_VOLUME_NEIGHBOURS = 20
 # Where the pilot has nothing to go by (no photon, or no query reaches a kernel), and as the
 # kernel's first radii until the pilot has run: a fraction of the scene's radius.
 FALLBACK_RADIUS_RELATIVE = 0.02
@@ -145,10 +146,10 @@ class PhotonMapping(NativeMethod):
         minimum = 1e-9 * self.native.core.scene_radius
 
         def derive(index: int, neighbours: int, what: str) -> radii.DerivedRadius:
-            distances, extent = kernel.pilot_result(index)
+            distances, extent, free_paths = kernel.pilot_result(index)
             return radii.from_pilot(
                 np.asarray(distances), extent, neighbours, what, self.fallback_radius, fallback,
-                minimum,
+                minimum, np.asarray(free_paths),
             )  # fmt: skip
 
         derived = {}

@@ -42,10 +42,11 @@ DEFAULT_LIGHT_PATHS = 1 << 13
 DEFAULT_MAX_BEAMS = 1 << 22
 # Light-path records (vertices plus segments) per iteration, as pm's: beams come from them.
 DEFAULT_MAX_RECORDS = 1 << 23
-# Beams a typical camera segment gathers per iteration at the derived first radius, and surface
-# photons a typical surface estimate (methods/radii.py). Chosen so that cbox-fog keeps about
-# the radii it had when they were 0.01 and 0.02 of the scene's radius (docs/methods.md).
-DEFAULT_BEAM_NEIGHBOURS = 48
+# Beams a typical camera segment (up to a free flight) gathers per iteration at the derived
+# first radius, and surface photons a typical surface estimate (methods/radii.py). Chosen so
+# that cbox-fog keeps about the radii it had when they were 0.01 and 0.02 of the scene's
+# radius (docs/methods.md).
+DEFAULT_BEAM_NEIGHBOURS = 16
 DEFAULT_SURFACE_NEIGHBOURS = 2
 # Where the pilot has nothing to go by, and as the kernels' radii until it has run: fractions
 # of the scene's radius.
@@ -195,11 +196,11 @@ class ProgressivePhotonBeams(NativeMethod):
         minimum = 1e-9 * self.native.core.scene_radius
 
         def derive(index: int, neighbours: int, kind: str, what: str) -> radii.DerivedRadius:
-            distances, extent = kernel.pilot_result(index)
+            distances, extent, free_paths = kernel.pilot_result(index)
             relative = FALLBACK_BEAM_RADIUS if kind == "beam" else FALLBACK_SURFACE_RADIUS
             return radii.from_pilot(
                 np.asarray(distances), extent, neighbours, what, self.fallback[kind],
-                f"{relative:g} of the scene's radius", minimum,
+                f"{relative:g} of the scene's radius", minimum, np.asarray(free_paths),
             )  # fmt: skip
 
         derived = {}

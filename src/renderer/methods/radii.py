@@ -30,6 +30,10 @@ PILOT_ITERATION = 1 << 62
 PILOT_QUERIES = 4096
 # A derived radius is at most this fraction of the bounding radius of its kernel's photons.
 EXTENT_FRACTION = 0.1
+# A medium's derived radius is at most this many of its typical mean free paths (the median of
+# 1 / sigma_t where the pilot's flights ended): the light in a dense medium changes over a mean
+# free path, and a wider kernel carries photons to where the camera ray sees none.
+FREE_PATHS = 1.0
 
 
 @dataclass(frozen=True)
@@ -66,22 +70,27 @@ def from_pilot(
     fallback_world: float,
     fallback_rule: str,
     minimum: float,
+    free_paths: np.ndarray | None = None,
 ) -> DerivedRadius:
     """The radius of one kernel from its pilot queries (``distances`` to the k-th nearest
     photon or beam of each, inf where fewer than k lie within the cap) and the bounding radius
     ``extent`` of what it could gather; ``fallback_world`` when the pilot saw nothing to go by.
-    ``what`` names the queries in the rule, e.g. "camera-path vertices on diffuse surfaces"."""
+    ``what`` names the queries in the rule, e.g. "camera-path vertices on diffuse surfaces".
+    ``free_paths`` (a medium's queries): the mean free path where each one's flight ended; the
+    radius is at most FREE_PATHS times their median."""
     if extent <= 0:
         return DerivedRadius(fallback_world, f"{fallback_rule}: the pilot found nothing to gather")
     if len(distances) == 0:
         return DerivedRadius(fallback_world, f"{fallback_rule}: no pilot query reached {what}")
     median = float(np.median(distances))
-    cap = EXTENT_FRACTION * extent
     rule = f"median distance to the {neighbours} nearest over {len(distances)} {what}"
+    bounds = [(EXTENT_FRACTION * extent, f"{EXTENT_FRACTION:g} of the extent of what it gathers "
+               f"({extent:.4g})")]  # fmt: skip
+    if free_paths is not None and len(free_paths):
+        free_path = float(np.median(free_paths))
+        bounds.append((FREE_PATHS * free_path, f"{FREE_PATHS:g} x the median mean free path "
+                       f"where its flights ended ({free_path:.4g})"))  # fmt: skip
+    cap, cap_rule = min(bounds)
     if not median < cap:
-        return DerivedRadius(
-            max(cap, minimum),
-            f"{EXTENT_FRACTION:g} of the extent of what it gathers ({extent:.4g}): {rule} "
-            "lies beyond it",
-        )
+        return DerivedRadius(max(cap, minimum), f"{cap_rule}: {rule} lies beyond it")
     return DerivedRadius(max(median, minimum), rule)
