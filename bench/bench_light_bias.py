@@ -1,15 +1,16 @@
 """The bias of the light-side methods at their defaults, measured for tests/test_light_methods.py.
 
     python bench/bench_light_bias.py [--scenes ...] [--methods pm sppm ppb] [--iterations 128]
-                                     [--seed 11] [--threads 2]
+                                     [--seed 11] [--threads 2] [--reference 64 2048]
 
 For each scene and method, at the test's 16 x 16 film and settings (the defaults, 16 camera
-paths per pixel and iteration), one run of `--iterations` against pt (64 images of 2048 spp):
-the relative deviation of the image mean, of each quadrant and of each 4 x 4 pixel block from
-pt's, with its standard error (both runs' noise). The printed c at each scale is the largest
-|deviation| + 2 standard errors over its cells, over r, the mean over the run's iterations of
-the method's widest kernel radius: the test allows a bias of c r at that scale, r its own run's
-(its schedule and iterations). The last line of each scene is the entry of BIAS there.
+paths per pixel and iteration), one run of `--iterations` against pt (`--reference`: 64 images
+of 2048 spp by default): the relative deviation of the image mean, of each quadrant and of each
+4 x 4 pixel block from pt's, with its standard error (both runs' noise). The printed c at each
+scale is the largest |deviation| + 2 standard errors over its cells, over r, the mean over the
+run's iterations of the method's widest kernel radius: the test allows a bias of c r at that
+scale, r its own run's (its schedule and iterations). The last line of each scene is the entry
+of BIAS there.
 Numbers are printed, never asserted.
 """
 
@@ -50,11 +51,16 @@ def main() -> None:
     parser.add_argument("--iterations", type=at_least(2), default=128, help="of each run")
     parser.add_argument("--seed", type=int, default=11, help="of the methods' runs")
     parser.add_argument("--threads", type=at_least(1), default=2, help="worker threads")
+    parser.add_argument(
+        "--reference", nargs=2, type=at_least(2), default=[64, 2048], metavar=("IMAGES", "SPP"),
+        help="pt's reference: images and samples per pixel of each",
+    )  # fmt: skip
     args = parser.parse_args()
     check_options(parser, args)
     for name in args.scenes:
         scene = load_small(name, RES, RES)
-        ref = ours(PathTracing, scene, 64, seed=99, spp_per_wave=2048)
+        images, spp = args.reference
+        ref = ours(PathTracing, scene, images, seed=99, spp_per_wave=spp)
         entry = {}
         for method_id in args.methods:
             params = PARAMS[method_id]

@@ -111,19 +111,24 @@ void PhotonMapping::begin(int64_t iteration) {
     const LightPaths &paths = *light_paths_;
     if (paths.iteration() != iteration)
         throw std::logic_error("pm: the light paths of iteration " + std::to_string(iteration) + " come first");
-    surface_photons_.clear();
-    volume_photons_.clear();
-    for (const PathVertex &v : paths.vertices()) {
-        if (v.kind == VertexKind::Surface) surface_photons_.push_back(v);
-        else if (v.kind == VertexKind::Medium) volume_photons_.push_back(v);
+    // The photons and their trees, once per iteration (the pilot's camera pass and the
+    // iteration's own share them).
+    if (photons_iteration_ != iteration) {
+        surface_photons_.clear();
+        volume_photons_.clear();
+        for (const PathVertex &v : paths.vertices()) {
+            if (v.kind == VertexKind::Surface) surface_photons_.push_back(v);
+            else if (v.kind == VertexKind::Medium) volume_photons_.push_back(v);
+        }
+        inv_light_paths_ = 1.0 / double(paths.paths_per_iteration());
+        std::vector<Vec3> points(surface_photons_.size());
+        for (size_t i = 0; i < points.size(); ++i) points[i] = surface_photons_[i].pos;
+        surface_tree_.build(points, threads_);
+        points.resize(volume_photons_.size());
+        for (size_t i = 0; i < points.size(); ++i) points[i] = volume_photons_[i].pos;
+        volume_tree_.build(points, threads_);
+        photons_iteration_ = iteration;
     }
-    inv_light_paths_ = 1.0 / double(paths.paths_per_iteration());
-    std::vector<Vec3> points(surface_photons_.size());
-    for (size_t i = 0; i < points.size(); ++i) points[i] = surface_photons_[i].pos;
-    surface_tree_.build(points, threads_);
-    points.resize(volume_photons_.size());
-    for (size_t i = 0; i < points.size(); ++i) points[i] = volume_photons_[i].pos;
-    volume_tree_.build(points, threads_);
     active_.clear();
     if (pilot_) {
         // The pilot: the photons each kernel could gather, and a regular sample of the paths.

@@ -153,7 +153,8 @@ private:
     std::vector<int> pilot_slot_medium_;
     std::vector<GatherPath> paths_;
     std::vector<int32_t> active_;
-    // This iteration's photons.
+    // This iteration's photons (of the light paths of iteration photons_iteration_).
+    int64_t photons_iteration_ = -1;
     std::vector<PathVertex> surface_photons_, volume_photons_;
     PointTree surface_tree_, volume_tree_;
     double inv_light_paths_ = 0;

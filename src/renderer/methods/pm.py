@@ -126,9 +126,10 @@ class PhotonMapping(NativeMethod):
             out[medium] = self.given.get("volume_radius") or derived[medium]
         return out
 
-    def derive_radii(self) -> None:
-        """The pilot (methods/radii.py): the radii not given, from the k nearest photons of the
-        places where the camera paths estimate, set as each kernel's first radius."""
+    def derive_radii(self, iteration: int) -> None:
+        """The pilot (methods/radii.py) on ``iteration``'s photons: the radii not given, from
+        the k nearest photons of the places where the camera paths estimate, set as each
+        kernel's first radius."""
         kernel = self.camera_paths.kernel
         kernel.set_pilot(
             self.surface_neighbours,
@@ -137,8 +138,7 @@ class PhotonMapping(NativeMethod):
             radii.pilot_stride(self.scene.film, self.spp_per_iteration),
         )
         try:
-            self.light_paths.run(radii.PILOT_ITERATION)
-            self.camera_paths.run(radii.PILOT_ITERATION)
+            self.camera_paths.run(iteration)
         finally:
             kernel.set_pilot(0, 0, radii.EXTENT_FRACTION, 1)
         scale = FALLBACK_RADIUS_RELATIVE * self.neighbours_scale**0.5
@@ -171,11 +171,11 @@ class PhotonMapping(NativeMethod):
         return 1.0, 1.0
 
     def run_passes(self, iteration: int) -> None:
-        """Photon pass, then camera paths gathering with this iteration's radii (the pilot
-        first, before the first iteration run, if a radius is to be derived)."""
-        if self.radii is None:
-            self.derive_radii()
+        """Photon pass, then camera paths gathering with this iteration's radii (the pilot in
+        between, on the first iteration run, if a radius is to be derived)."""
         self.light_paths.run(iteration)
+        if self.radii is None:
+            self.derive_radii(iteration)
         self.camera_paths.run(iteration)
 
     def method_stats(self) -> dict:

@@ -178,9 +178,10 @@ class ProgressivePhotonBeams(NativeMethod):
             out[medium] = self.given.get("beam_radius") or derived[medium]
         return out
 
-    def derive_radii(self) -> None:
-        """The pilot (methods/radii.py): the radii not given, from the k nearest beams (surface
-        photons) of the places where the camera paths gather, set as each kernel's first."""
+    def derive_radii(self, iteration: int) -> None:
+        """The pilot (methods/radii.py) on ``iteration``'s light paths: the radii not given, from
+        the k nearest beams (surface photons) of the places where the camera paths gather, set
+        as each kernel's first."""
         kernel = self.camera_paths.kernel
         kernel.set_pilot(
             self.surface_neighbours,
@@ -189,8 +190,7 @@ class ProgressivePhotonBeams(NativeMethod):
             radii.pilot_stride(self.scene.film, self.spp_per_iteration),
         )
         try:
-            self.light_paths.run(radii.PILOT_ITERATION)
-            self.camera_paths.run(radii.PILOT_ITERATION)
+            self.camera_paths.run(iteration)
         finally:
             kernel.set_pilot(0, 0, radii.EXTENT_FRACTION, 1)
         minimum = 1e-9 * self.native.core.scene_radius
@@ -218,12 +218,12 @@ class ProgressivePhotonBeams(NativeMethod):
         self.radii = self.with_given_radii(derived)
 
     def run_passes(self, iteration: int) -> None:
-        # (The pilot first, before the first iteration run, if a radius is to be derived.)
+        # (The pilot after the first light paths, if a radius is to be derived.)
         # Light paths; then their beams in a BVH with this iteration's radius, and camera paths
         # that gather them along media and path-trace surfaces.
-        if self.radii is None:
-            self.derive_radii()
         self.light_paths.run(iteration)
+        if self.radii is None:
+            self.derive_radii(iteration)
         self.camera_paths.run(iteration)
 
     def method_stats(self) -> dict:

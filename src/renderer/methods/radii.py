@@ -2,17 +2,20 @@
 "Default radii").
 
 A radius that neither ``{name}_world`` nor ``{name}_relative`` gives is measured by a *pilot*
-before the first iteration: the method's own kernels run once on the light paths of a reserved
-iteration (PILOT_ITERATION, whose random streams no iteration uses) and on a regular sample of
-about PILOT_QUERIES camera paths, and estimate nothing. Where an estimate would be made (a
-camera-path vertex on a diffuse surface, a camera-path segment in a medium), they record how
-far the k nearest photons (ppb: beams) that estimate would gather lie, k being
-``{name}_neighbours``. Each kernel (the surfaces, and each medium on its own) takes the median
-of its queries' distances, so that a typical query gathers k photons an iteration, but at most
-EXTENT_FRACTION of the bounding radius of the photons it could gather (a medium's: its own
-photons'), so that a kernel stays small against the medium it estimates. The radii then depend on
-the photons around the places the camera sees, not on the scene's bounding box: a backdrop
-20 times as large leaves the radii in a medium as they were.
+in the first iteration run, between its light paths and its camera paths: the method's own
+kernels run once on that iteration's light paths and on a regular sample of about
+PILOT_QUERIES of its camera paths, and estimate nothing (reusing the light paths costs the
+pilot a camera pass of a few thousand paths, not an iteration's photons; the first iteration's
+radii then depend on its own photons, as the later iterations' do not). Where an estimate
+would be made (a camera-path vertex on a diffuse surface; in a medium, a camera-path segment up
+to a free flight along it), they record how far the k nearest photons (ppb: beams) that
+estimate would gather lie, k being ``{name}_neighbours``. Each kernel (the surfaces, and each
+medium on its own) takes the median of its queries' distances, so that a typical query gathers
+k photons an iteration, but at most EXTENT_FRACTION of the bounding radius of the photons it
+could gather (a medium's: its own photons'), so that a kernel stays small against the medium
+it estimates, and in a medium at most FREE_PATHS mean free paths where the flights ended. The
+radii then depend on the photons around the places the camera sees, not on the scene's
+bounding box: a backdrop 20 times as large leaves the radii in a medium as they were.
 """
 
 from __future__ import annotations
@@ -24,8 +27,6 @@ import numpy as np
 
 from ..scene.model import Film
 
-# The light paths and camera paths of the pilot: an iteration number no render reaches.
-PILOT_ITERATION = 1 << 62
 # Camera paths the pilot samples (every n-th path of an iteration of one sample per pixel).
 PILOT_QUERIES = 4096
 # A derived radius is at most this fraction of the bounding radius of its kernel's photons.
