@@ -149,7 +149,8 @@ class PhotonMapping(NativeMethod):
             distances, extent, free_paths = kernel.pilot_result(index)
             return radii.from_pilot(
                 np.asarray(distances), extent, neighbours, what, self.fallback_radius, fallback,
-                minimum, np.asarray(free_paths),
+                minimum,
+                radii.grid_free_paths(self.scene, self.native.medium_ids, index, free_paths),
             )  # fmt: skip
 
         derived = {}

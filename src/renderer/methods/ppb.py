@@ -200,7 +200,8 @@ class ProgressivePhotonBeams(NativeMethod):
             relative = FALLBACK_BEAM_RADIUS if kind == "beam" else FALLBACK_SURFACE_RADIUS
             return radii.from_pilot(
                 np.asarray(distances), extent, neighbours, what, self.fallback[kind],
-                f"{relative:g} of the scene's radius", minimum, np.asarray(free_paths),
+                f"{relative:g} of the scene's radius", minimum,
+                radii.grid_free_paths(self.scene, self.native.medium_ids, index, free_paths),
             )  # fmt: skip
 
         derived = {}

@@ -13,7 +13,7 @@ estimate would gather lie, k being ``{name}_neighbours``. Each kernel (the surfa
 medium on its own) takes the median of its queries' distances, so that a typical query gathers
 k photons an iteration, but at most EXTENT_FRACTION of the bounding radius of the photons it
 could gather (a medium's: its own photons'), so that a kernel stays small against the medium
-it estimates, and in a medium at most FREE_PATHS mean free paths where the flights ended. The
+it estimates, and in a grid medium at most FREE_PATHS mean free paths where the flights ended. The
 radii then depend on the photons around the places the camera sees, not on the scene's
 bounding box: a backdrop 20 times as large leaves the radii in a medium as they were.
 """
@@ -25,15 +25,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..scene.model import Film
+from ..scene.model import Film, Scene
 
 # Camera paths the pilot samples (every n-th path of an iteration of one sample per pixel).
 PILOT_QUERIES = 4096
 # A derived radius is at most this fraction of the bounding radius of its kernel's photons.
 EXTENT_FRACTION = 0.1
-# A medium's derived radius is at most this many of its typical mean free paths (the median of
-# 1 / sigma_t where the pilot's flights ended): the light in a dense medium changes over a mean
-# free path, and a wider kernel carries photons to where the camera ray sees none.
+# A grid medium's derived radius is at most this many of its typical mean free paths (the median
+# of 1 / sigma_t where the pilot's flights ended): where density varies inside a medium, a kernel
+# wider than that reaches from a camera ray still in thin or empty parts to the photons of dense
+# ones. Not in homogeneous media: their only edges are their boundaries, which the boundary
+# kernels follow, and a laterally uniform slab needs kernels of many free paths to gather photons.
 FREE_PATHS = 1.0
 
 
@@ -63,6 +65,13 @@ def given(world: float, key: str) -> DerivedRadius:
     return DerivedRadius(world, f"given ({key})")
 
 
+def grid_free_paths(scene: Scene, medium_ids: dict[str, int], index: int, free_paths) -> np.ndarray:
+    """The pilot's free paths of kernel ``index`` if it is a grid medium's, else none."""
+    names = {i: name for name, i in medium_ids.items()}
+    grid = index in names and scene.media[names[index]].type == "grid"
+    return np.asarray(free_paths) if grid else np.empty(0)
+
+
 def from_pilot(
     distances: np.ndarray,
     extent: float,
@@ -77,8 +86,8 @@ def from_pilot(
     photon or beam of each, inf where fewer than k lie within the cap) and the bounding radius
     ``extent`` of what it could gather; ``fallback_world`` when the pilot saw nothing to go by.
     ``what`` names the queries in the rule, e.g. "camera-path vertices on diffuse surfaces".
-    ``free_paths`` (a medium's queries): the mean free path where each one's flight ended; the
-    radius is at most FREE_PATHS times their median."""
+    ``free_paths`` (a grid medium's queries, grid_free_paths): the mean free path where each
+    one's flight ended; the radius is at most FREE_PATHS times their median."""
     if extent <= 0:
         return DerivedRadius(fallback_world, f"{fallback_rule}: the pilot found nothing to gather")
     if len(distances) == 0:
