@@ -18,18 +18,23 @@ pm, sppm and ppb are consistent: their kernels' bias is of order r where a kerne
 edge, a corner or a boundary (docs/methods.md). Their allowance at each scale is c r, with r
 the mean over the run's iterations of the method's widest kernel radius (pm: its fixed radius;
 sppm and ppb: their schedules'), and c measured for each scene, method and scale (BIAS, by
-bench/bench_light_bias.py: 48 iterations at seed 11 against pt at 32 x 512 spp; c is the
-largest |relative deviation| + 2 standard errors over the cells of that scale, over r): the
-bound holds for the bias of these radii, whatever they are, and grows with them. A radius
-picked small to hide the bias is what the old tests did; these run at the defaults. Each
-cell's colour is judged as a vector beyond the allowance (parity.agreement_beyond). cloud is
-not checked here: pt needs about 160 CPU seconds for this test's reference of it (a dense,
-white medium), beyond the suite's budget; docs/methods.md gives its measured bias.
+bench/bench_light_bias.py at seed 11; c is the largest |relative deviation| + 2 standard errors
+over the cells of that scale, over r: on cbox, cbox-fog, cbox-glass and crepuscular 256 or 128
+iterations against pt at 64 x 2048 spp, at the radii of the rule's first version, which their
+media hardly changed since (cbox-fog 0.034 -> 0.035; cbox-glass pm 0.043 -> 0.037, ppb 0.014 ->
+0.010); on the others 48 iterations against pt at 32 x 512 spp, whose noise the 2 standard
+errors make part of c): the bound holds for the bias of these radii, whatever they are, and
+grows with them. A radius picked small to hide the bias is what the old tests did; these run at
+the defaults. Each cell's colour is judged as a vector beyond the allowance
+(parity.agreement_beyond). cloud is not checked here: pt needs about 90 CPU seconds for this
+test's reference of it (a dense, white medium), beyond the suite's budget; docs/methods.md
+gives its measured bias.
+
 Power: each check fails with LOSS (5 %) of the light taken from any one quadrant, or moved
 from one quadrant to the opposite one (a blur that keeps the image mean), beyond the allowance
 of the quadrants (parity.assert_multiscale_check_has_power with the loss plus that allowance);
 where the iterations the suite can afford leave a quadrant's standard error above 1 %, the
-loss that case resolves is stated instead (NOISY: 6-10 %).
+loss that case resolves is stated instead (NOISY: 6-14 %; 26-28 % on volcaustic).
 """
 
 from __future__ import annotations
@@ -63,31 +68,37 @@ BIAS: dict[str, dict[str, tuple[float, float, float]]] = {
     "cbox": {"pm": (0.57, 1.37, 2.06), "sppm": (0.6, 1.44, 2.14), "ppb": (0.88, 1.91, 2.65)},
     "cbox-fog": {"pm": (0.26, 0.67, 1.56), "sppm": (0.26, 0.7, 1.61), "ppb": (0.51, 0.93, 2.24)},
     "cbox-glass": {"pm": (0.28, 0.98, 1.54), "sppm": (0.28, 0.95, 1.48), "ppb": (1.12, 1.69, 4.17)},
-    "cbox-grid": {"pm": (0.09, 0.24, 0.39), "sppm": (0.13, 0.34, 0.58), "ppb": (1.89, 2.73, 4.06)},
     "crepuscular": {"pm": (0.12, 0.2, 0.4), "sppm": (0.17, 0.27, 0.56), "ppb": (0.4, 0.51, 0.84)},
-}
-# The scenes whose allowances are measured; the others are still to be (module docstring).
-MEASURED = [name for name in SCENES if name in BIAS]
+    "cbox-grid": {"pm": (0.58, 2.09, 3.02), "sppm": (0.45, 1.72, 2.48), "ppb": (2.11, 3.18, 4.65)},
+    "fog-perlin": {"pm": (0.71, 2.25, 3.25), "sppm": (0.51, 1.75, 2.55), "ppb": (1.79, 3.01, 6.59)},
+    "fog-step": {"pm": (0.7, 1.01, 2.14), "sppm": (0.6, 0.91, 1.81), "ppb": (1.26, 1.88, 3.84)},
+    "juice": {"pm": (1.04, 2.94, 4.03), "sppm": (0.8, 2.35, 3.23), "ppb": (1.36, 2.15, 2.96)},
+    "smoke": {"pm": (0.49, 0.72, 3.5), "sppm": (0.43, 0.66, 2.45), "ppb": (0.35, 0.72, 2.89)},
+    "volcaustic": {"pm": (0.68, 1.36, 4.27), "sppm": (0.58, 1.13, 3.6), "ppb": (1.86, 4.62, 8.65)},
+}  # fmt: skip
 # Iterations of each run (pm, sppm, ppb): enough for a quadrant's standard error of about 1 %
 # (with the reference's), where an iteration is cheap; 48 / 48 / 96 where it is not.
 ITERATIONS = {
     "cbox": (192, 192, 768),
-    "cbox-fog": (48, 48, 96),
-    "cbox-glass": (48, 48, 96),
-    "cbox-grid": (48, 48, 96),
     "crepuscular": (384, 384, 384),
 }
 LT_ITERATIONS = 24
 # The loss in one quadrant (or moved between two) that each check must catch beyond the
 # quadrants' allowance: 5 %, or what that case's noise resolves (5.5 standard errors of a
-# quadrant, from the runs that measured BIAS, rounded up to a percent).
+# quadrant, from the runs that measured BIAS, rounded up to a percent; volcaustic's caustic
+# through the glass sphere leaves a quadrant's standard error at 5 % after 48 iterations).
 LOSS = 0.05
 NOISY = {
     ("cbox", "pm"): 0.06, ("cbox", "sppm"): 0.06,
     ("cbox-fog", "pm"): 0.06, ("cbox-fog", "sppm"): 0.06,
     ("cbox-glass", "pm"): 0.08, ("cbox-glass", "sppm"): 0.08, ("cbox-glass", "ppb"): 0.06,
-    ("cbox-grid", "pm"): 0.10, ("cbox-grid", "sppm"): 0.10, ("cbox-grid", "ppb"): 0.09,
     ("crepuscular", "ppb"): 0.06,
+    ("cbox-grid", "pm"): 0.10, ("cbox-grid", "ppb"): 0.12, ("cbox-grid", "sppm"): 0.10,
+    ("fog-perlin", "pm"): 0.09, ("fog-perlin", "ppb"): 0.14, ("fog-perlin", "sppm"): 0.09,
+    ("fog-step", "pm"): 0.12, ("fog-step", "ppb"): 0.11, ("fog-step", "sppm"): 0.12,
+    ("juice", "pm"): 0.11, ("juice", "ppb"): 0.13, ("juice", "sppm"): 0.11,
+    ("smoke", "ppb"): 0.11,
+    ("volcaustic", "pm"): 0.28, ("volcaustic", "ppb"): 0.26, ("volcaustic", "sppm"): 0.28,
 }  # fmt: skip
 
 _references: dict[str, Estimate] = {}
@@ -158,18 +169,18 @@ class TestLt:
 
 
 class TestPm:
-    @pytest.mark.parametrize("name", MEASURED)
+    @pytest.mark.parametrize("name", SCENES)
     def test_agrees_with_pt(self, name):
         check(name, "pm")
 
 
 class TestSppm:
-    @pytest.mark.parametrize("name", MEASURED)
+    @pytest.mark.parametrize("name", SCENES)
     def test_agrees_with_pt(self, name):
         check(name, "sppm")
 
 
 class TestPpb:
-    @pytest.mark.parametrize("name", MEASURED)
+    @pytest.mark.parametrize("name", SCENES)
     def test_agrees_with_pt(self, name):
         check(name, "ppb")
