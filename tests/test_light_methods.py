@@ -86,7 +86,9 @@ LT_ITERATIONS = 24
 # The loss in one quadrant (or moved between two) that each check must catch beyond the
 # quadrants' allowance: 5 %, or what that case's noise resolves (5.5 standard errors of a
 # quadrant, from the runs that measured BIAS, rounded up to a percent; volcaustic's caustic
-# through the glass sphere leaves a quadrant's standard error at 5 % after 48 iterations).
+# through the glass sphere leaves a quadrant's standard error at 5 % after 48 iterations;
+# smoke's pm and sppm, heavy-tailed, at 1.3 % in this test's run against 0.8 % in bench's: 5 %
+# taken from its first quadrant gave |z| 3.5, 6 % is caught).
 LOSS = 0.05
 NOISY = {
     ("cbox", "pm"): 0.06, ("cbox", "sppm"): 0.06,
@@ -97,7 +99,7 @@ NOISY = {
     ("fog-perlin", "pm"): 0.09, ("fog-perlin", "ppb"): 0.14, ("fog-perlin", "sppm"): 0.09,
     ("fog-step", "pm"): 0.12, ("fog-step", "ppb"): 0.11, ("fog-step", "sppm"): 0.12,
     ("juice", "pm"): 0.11, ("juice", "ppb"): 0.13, ("juice", "sppm"): 0.11,
-    ("smoke", "ppb"): 0.11,
+    ("smoke", "pm"): 0.07, ("smoke", "sppm"): 0.07, ("smoke", "ppb"): 0.11,
     ("volcaustic", "pm"): 0.28, ("volcaustic", "ppb"): 0.26, ("volcaustic", "sppm"): 0.28,
 }  # fmt: skip
 
