@@ -73,6 +73,28 @@ def test_queries_match_brute_force(long, piece):
     np.testing.assert_allclose(np.stack([tb, tr, dist, sin], 1), want, rtol=1e-9, atol=1e-9)
 
 
+def test_k_nearest_beams_match_brute_force():
+    """The pilot's beam query (methods/radii.py), on a tree of radius 0: the k-th smallest
+    distance among the pairs brute force finds within a bound, or inf when fewer than k."""
+    rng = np.random.default_rng(5)
+    origins, dirs, lengths = random_beams(rng, 2000, True)
+    bvh = _core.BeamBvh(1 << 20)
+    bvh.build(origins, dirs, lengths, 0.0, 0.1)
+    nrays = 200
+    ray_o = rng.uniform(-1.5, 1.5, (nrays, 3))
+    ray_d = rng.normal(size=(nrays, 3))
+    ray_d /= np.linalg.norm(ray_d, axis=1, keepdims=True)
+    ray_t = rng.uniform(0.5, 3.0, nrays)
+    for k, bound in ((1, 0.05), (8, 0.2), (64, 0.2)):
+        got = bvh.kth_nearest(ray_o, ray_d, ray_t, k, bound)
+        pairs = brute_force(origins, dirs, lengths, ray_o, ray_d, ray_t, bound)
+        for i in range(nrays):
+            dist = sorted(v[2] for (r, _), v in pairs.items() if r == i)
+            want = dist[k - 1] if len(dist) >= k else np.inf
+            assert got[i] == pytest.approx(want, rel=1e-9), (i, k, bound)
+        assert np.isfinite(got).sum() > 20  # the test exercises found and unfound alike
+
+
 def test_memory_bound_truncates_and_counts():
     rng = np.random.default_rng(3)
     origins, dirs, lengths = random_beams(rng, 500, True)

@@ -17,6 +17,8 @@ SCRIPTS = (
     "bench_ppb",
     "bench_media",
     "bench_light_methods",
+    "bench_slab",
+    "bench_defaults",
     "bench_vpl",
     "bench_bdpt",
     "bench_roulette",
@@ -41,7 +43,7 @@ def test_every_option_is_explained(script):
     r = run(script, "--help")
     assert r.returncode == 0, r.stderr
     options = [line.split()[0] for line in r.stdout.splitlines() if line.startswith("  --")]
-    assert "--threads" in options and "--scenes" in options
+    assert "--threads" in options and ("--scenes" in options or script == "bench_slab")
     for line in r.stdout.split("\n  --")[1:]:
         assert len(line.split()) > 2, f"{script}: option without help: --{line}"
 
@@ -59,6 +61,8 @@ def test_every_option_is_explained(script):
         ("bench_media", ["--scenes", "cbox-fog"], "cbox-fog: no grid medium"),
         ("bench_light_methods", ["--methods", "bdpt"], "invalid choice: 'bdpt'"),
         ("bench_light_methods", ["--size", "0"], "expected an integer >= 1"),
+        ("bench_slab", ["--width", "2"], "--width must be at least 4"),
+        ("bench_defaults", ["--methods", "nosuch"], "unknown method(s) ['nosuch']"),
         ("bench_vpl", ["--budgets", "1", "nan"], "expected a finite number of seconds > 0"),
         ("bench_vpl", ["--set", "clamp=none"], "expected method.KEY=VALUE"),
         ("bench_bdpt", ["--seconds", "0"], "expected a finite number of seconds > 0"),

@@ -42,6 +42,9 @@ BAD = [
     ("ppb", "surface_radius_relative", -0.1, "a number >= 0"),
     ("ppb", "gather_bounces", -1, INT_0),
     ("mitsuba", "spp_per_iteration", "4", INT_1),
+    ("pm", "volume_radius_neighbours", 0, INT_1),
+    ("sppm", "surface_radius_neighbours", 2.5, INT_1),
+    ("ppb", "beam_radius_neighbours", -3, INT_1),
     ("vpl", "light_paths", 0, INT_1),
     ("vpl", "spp_per_iteration", 1.5, INT_1),
     ("vpl", "share_lights", "yes", "true or false"),
@@ -92,6 +95,18 @@ def test_a_bad_value_is_quoted_as_yaml_writes_it_and_briefly():
             {"radius_scale": 0.02, "volume_radius_relative": 0.1},
             "radius_scale is an old name of volume_radius_relative: give only one",
         ),
+        # the pilot's k nearest photons derive a radius that is not given
+        (
+            "pm",
+            {"volume_radius_world": 0.1, "volume_radius_neighbours": 8},
+            "volume_radius_neighbours has no effect with volume_radius_world or "
+            "volume_radius_relative",
+        ),
+        (
+            "ppb",
+            {"surface_radius_relative": 0, "surface_radius_neighbours": 8},
+            "surface_radius_neighbours has no effect with path-traced surfaces",
+        ),
     ],
 )
 def test_a_parameter_without_effect_or_given_twice_is_an_error(method, params, message):
@@ -106,7 +121,7 @@ def test_sppm_takes_both_radii_without_its_default_scale():
         threads=1,
         params={"surface_radius_world": 0.1, "volume_radius_world": 0.2},
     )
-    assert (sppm.radius, sppm.volume_radius) == (0.1, 0.2)
+    assert (sppm.surface_given, sppm.volume_given) == (0.1, 0.2)
 
 
 @pytest.mark.parametrize(
@@ -178,13 +193,14 @@ def test_every_parameter_used_is_recorded_with_its_value():
         "light_paths": 100,
         "spp_per_iteration": 1,
         "max_records": 8388608,
-        "surface_radius_relative": 0.02,
-        "volume_radius_relative": 0.02,
+        "surface_radius_neighbours": 16,
+        "volume_radius_neighbours": 20,
     }
     both = get_method("pm")(
         scene, seed=0, threads=1, params={"surface_radius_world": 0.1, "volume_radius_world": 0.2}
     )
     assert "surface_radius_relative" not in both.method_params
+    assert "surface_radius_neighbours" not in both.method_params  # no pilot: radii given
     assert both.method_params["volume_radius_world"] == 0.2
     sppm = get_method("sppm")(scene, seed=0, threads=1, params={"surface_alpha": 0.5})
     assert sppm.method_params["surface_alpha"] == sppm.method_params["volume_alpha"] == 0.5

@@ -11,7 +11,13 @@ channel where extinction differs between colour channels (juice).
 
 Power: the sample counts are sized so that our images scaled by 0.97 fail the image-mean
 check in every case (test_*_bias_fails), except the point light inside a grid, where paths
-scattering next to the light make the estimates heavy-tailed: 0.95 fails there.
+scattering next to the light make the estimates heavy-tailed: 0.95 fails there. The block
+check (mean, quadrants, 4x4 blocks) fails with 5 % of the light taken from any one quadrant,
+or moved to the opposite one (parity.assert_multiscale_check_has_power), where BLOCK_LOSS says no
+more: its noisiest quadrant resolves 7 % on smoke and fog-perlin (5 % gave |z| 3.7-4.1 against
+a bound of 4.46), 8 % with the camera in the tank (3.5), 12 % with the point light in the grid,
+whose paths scattering next to the light make its quadrants heavy-tailed (5 % gave |z| 3.2 in
+one run, 8 % gave 3.6 in another).
 """
 
 from __future__ import annotations
@@ -21,12 +27,11 @@ import yaml
 
 from conftest import SCENES, load_small
 from parity import (
-    ALPHA,
     Estimate,
-    agreement,
-    assert_block_check_has_power,
+    assert_multiscale_check_has_power,
     mean_agrees,
     mitsuba,
+    multiscale_agreement,
     ours,
 )
 from renderer.methods.pt import PathTracing
@@ -50,6 +55,9 @@ CASES = [
 ] + [("juice", "ratio")]
 
 _mitsuba_cache: dict = {}
+# The fixed loss in a quadrant each block check must catch (module docstring), where not 5 %.
+BLOCK_LOSS = {"smoke": 0.07, "fog-perlin": 0.07, "camera-in-dielectric-tank": 0.08,
+              "point-light-in-grid": 0.12}  # fmt: skip
 
 
 @pytest.fixture(scope="module", params=CASES, ids=[f"{s}-{e}" for s, e in CASES])
@@ -77,9 +85,9 @@ def test_a_three_percent_bias_fails(estimates):
 
 def test_blocks_match_mitsuba(estimates):
     name, a, b = estimates
-    result = agreement(a.blocks(4), b.blocks(4), ALPHA)
-    assert result.passes, f"{name}: {result}"
-    assert_block_check_has_power(a, b, name)
+    agrees, detail = multiscale_agreement(a, b)
+    assert agrees, f"{name}: {detail}"
+    assert_multiscale_check_has_power(a, b, name, BLOCK_LOSS.get(name.split("/")[0], 0.05))
 
 
 # --------------------------------------------------------------------------- configurations
@@ -166,9 +174,9 @@ def test_configuration_matches_mitsuba(config_estimates):
     name, a, b = config_estimates
     agrees, result = mean_agrees(a, b)
     assert agrees, f"{name}: {result}"
-    result = agreement(a.blocks(4), b.blocks(4), ALPHA)
-    assert result.passes, f"{name}: {result}"
-    assert_block_check_has_power(a, b, name)
+    agrees, detail = multiscale_agreement(a, b)
+    assert agrees, f"{name}: {detail}"
+    assert_multiscale_check_has_power(a, b, name, BLOCK_LOSS.get(name.split("/")[0], 0.05))
 
 
 def test_configuration_bias_fails(config_estimates):

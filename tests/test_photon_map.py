@@ -155,3 +155,28 @@ def test_surface_photons_count_only_on_the_surface_they_lie_on():
         assert np.allclose(got, want, rtol=1e-12, atol=0), (name, got, want)
     # seen from behind the one-sided wall: nothing
     assert np.all(gathered(np.ones(len(cases), bool), wo=(0.0, 0.0, -1.0)) == 0)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_k_nearest_distances_match_brute_force(seed):
+    """The pilot's queries (methods/radii.py): the distance to the k-th nearest point around a
+    point, and around a segment (distance to the segment), or inf when fewer than k lie within
+    the bound."""
+    rng = np.random.default_rng(seed)
+    for name, pts in _clouds(rng):
+        tree = _core.PointTree(np.ascontiguousarray(pts))
+        for _ in range(40):
+            k = int(rng.choice([1, 4, 32]))
+            bound = float(rng.choice([0.05, 0.5, 5.0]))
+            c = rng.uniform(-1.2, 1.2, 3)
+            want = np.sort(np.linalg.norm(pts - c, axis=1))
+            want = want[k - 1] if len(want) >= k and want[k - 1] < bound else np.inf
+            assert tree.kth_nearest_to_point(tuple(c), k, bound) == pytest.approx(want), name
+            d = rng.normal(size=3)
+            d /= np.linalg.norm(d)
+            tmax = float(rng.uniform(0, 2))
+            t = np.clip((pts - c) @ d, 0, tmax)
+            dist = np.sort(np.linalg.norm(pts - c - t[:, None] * d, axis=1))
+            want = dist[k - 1] if len(dist) >= k and dist[k - 1] < bound else np.inf
+            got = tree.kth_nearest_to_segment(tuple(c), tuple(d), tmax, k, bound)
+            assert got == pytest.approx(want), (name, k, bound)

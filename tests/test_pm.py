@@ -201,7 +201,8 @@ def test_stats_report_the_radii_and_the_bias():
     )
     method.run_iteration(0)
     s = method.stats()
-    assert s["surface_radius_world"] == 0.05 and s["volume_radius_world"] == 0.07
+    assert s["surface_radius_world"] == 0.05 and s["volume_radius_world"] == {"fog": 0.07}
+    assert s["radii"]["fog"] == {"world": 0.07, "rule": "given (volume_radius_world)"}
     assert s["consistent"] is False
     assert s["surface_photons"] > 0 and s["volume_photons"] > 0
     assert s["iterations"] == 1 and s["spp"] == 1 and s["nonfinite"] == 0

@@ -265,7 +265,8 @@ def test_light_path_records_beyond_max_records_stop_with_the_key_to_raise(scene)
 
 
 def test_sidecar_radii_are_world_units_and_slopes_follow_the_kernels():
-    """The parameters are relative to the scene radius; the sidecar's radii are world units."""
+    """Radii given relative to the scene radius; the sidecar's radii are world units, with how
+    each was set (the surface photons' derived by the pilot here)."""
     scene = load_small("cbox-fog", 8, 8)
     method = ProgressivePhotonBeams(
         scene, seed=0, threads=1, params={"light_paths": 64, "beam_radius_relative": 0.05}
@@ -273,8 +274,10 @@ def test_sidecar_radii_are_world_units_and_slopes_follow_the_kernels():
     method.run_iteration(0)
     s = method.stats()
     size = method.native.core.scene_radius
-    assert s["beam_radius_world"] == pytest.approx(0.05 * size)
-    assert s["surface_radius_world"] == pytest.approx(0.02 * size)
+    assert s["beam_radius_world"] == {"fog": pytest.approx(0.05 * size)}
+    assert s["radii"]["fog"]["rule"] == "given (beam_radius_relative)"
+    assert s["surface_radius_world"] == s["radii"]["surface"]["world"] > 0
+    assert "nearest" in s["radii"]["surface"]["rule"]
     # beams (d = 1, alpha 0.8): -0.8 / -0.4; surface photons (d = 2, alpha 2/3): -2/3 / -1/3
     assert s["consistent"] is True
     assert s["expected_mse_slope"] == pytest.approx(-2 / 3)

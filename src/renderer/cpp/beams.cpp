@@ -6,8 +6,9 @@
 
 namespace pgi {
 
-void BeamBvh::build(std::vector<Beam> beams, double radius, double max_piece_length) {
-    radius_ = radius;
+void BeamBvh::build(std::vector<Beam> beams, std::vector<double> radii, double max_piece_length) {
+    if (radii.empty()) radii.push_back(0.0);
+    radii_ = std::move(radii);
     beams_.clear();
     pieces_.clear();
     nodes_.clear();
@@ -57,6 +58,7 @@ void BeamBvh::build(std::vector<Beam> beams, double radius, double max_piece_len
     for (size_t i = 0; i < np; ++i) {
         const Piece &p = pieces_[i];
         Vec3 a = p.origin + p.dir * p.t0, c = p.origin + p.dir * p.t1;
+        const double radius = this->radius(beams_[size_t(p.beam)].medium);
         Item &it = items[i];
         for (int k = 0; k < 3; ++k) {
             it.lo[k] = float(std::min(a[k], c[k]) - radius);

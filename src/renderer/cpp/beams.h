@@ -22,8 +22,12 @@
 // 112 + 16 * 72 + 16 * 32 / 2 bytes per beam at most (a Beam is 112 bytes), and the
 // build's temporary arrays about as much again at their peak.
 // Visits follow the tree order, so sums over a query are deterministic.
+// Each medium's beams may have a radius of their own (the default radii differ by medium:
+// methods/radii.py). Built with radius 0, the tree also finds the distance within which the k
+// nearest beams of a ray lie (kth_nearest, for the pilot that derives those radii).
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <vector>
 
@@ -56,18 +60,50 @@ constexpr int kPiecesPerBeam = 16;
 
 class BeamBvh {
 public:
+    // A part of a beam: the tree bounds beams piece by piece.
+    struct Piece {
+        Vec3 origin, dir;  // the beam's, copied: leaf tests read pieces sequentially
+        double t0, t1;     // parameter range on the beam; the last piece's t1 is the length
+        bool last;         // t1 is the beam's end (closed range)
+        int32_t beam;
+        // Whether the beam's point at parameter t belongs to this piece (each to one piece).
+        bool holds(double t) const { return t >= t0 && (t < t1 || (last && t == t1)); }
+    };
+
     explicit BeamBvh(size_t max_beams = size_t(1) << 22) : max_beams_(max_beams) {}
 
-    // Replaces the stored beams; beams of zero length or power are skipped.
-    void build(std::vector<Beam> beams, double radius, double max_piece_length);
+    // Replaces the stored beams; beams of zero length or power are skipped. Beams of medium m
+    // have the radius radii[m] (one value: every beam's).
+    void build(std::vector<Beam> beams, std::vector<double> radii, double max_piece_length);
+    void build(std::vector<Beam> beams, double radius, double max_piece_length) {
+        build(std::move(beams), std::vector<double>{radius}, max_piece_length);
+    }
 
     // visit(beam_index, BeamHit) for every beam whose cylinder the ray (o, unit d)
     // crosses at its closest approach with t_ray in [0, tmax].
     template <typename Visit>
     void query(const Vec3 &o, const Vec3 &d, double tmax, Visit &&visit) const;
 
+    // visit(piece) for every piece that a point of the ray (o, unit d), t in [0, tmax], may lie
+    // within its beam's radius of: estimators with kernels of their own (ppb's near a medium's
+    // boundary) test the pieces themselves, and take a pair from the piece that holds its point
+    // on the beam (Piece::holds).
+    template <typename Visit>
+    void query_pieces(const Vec3 &o, const Vec3 &d, double tmax, Visit &&visit) const;
+
+    // The distance within which lie the k nearest beams that accept(beam_index) takes, by the
+    // estimator's own measure (the distance between the lines, both closest points on their
+    // segments, the ray's within [0, tmax]), searching no farther than max_radius: kInf if
+    // fewer than k lie within it. Needs a tree built with radius 0.
+    template <typename Accept>
+    double kth_nearest(const Vec3 &o, const Vec3 &d, double tmax, size_t k, double max_radius, Accept &&accept) const;
+
     const std::vector<Beam> &beams() const { return beams_; }
-    double radius() const { return radius_; }
+    // The radius of the beams of a medium.
+    double radius(int32_t medium) const {
+        if (radii_.size() == 1) return radii_[0];
+        return medium >= 0 && size_t(medium) < radii_.size() ? radii_[size_t(medium)] : 0.0;
+    }
     size_t piece_count() const { return pieces_.size(); }
     size_t node_count() const { return nodes_.size(); }
     double piece_length() const { return piece_length_; }
@@ -76,12 +112,6 @@ public:
     uint64_t escaped() const { return escaped_; }      // infinite beams dropped, all builds
 
 private:
-    struct Piece {
-        Vec3 origin, dir;  // the beam's, copied: leaf tests read pieces sequentially
-        double t0, t1;     // parameter range on the beam; the last piece's t1 is the length
-        bool last;         // t1 is the beam's end (closed range)
-        int32_t beam;
-    };
     struct Node {
         float lo[3], hi[3];  // box of the pieces below, grown by the radius, rounded outwards
         int32_t first;   // leaf: first piece; inner: the left child (the right one is first + 1)
@@ -93,7 +123,8 @@ private:
     std::vector<Beam> beams_;
     std::vector<Piece> pieces_;
     std::vector<Node> nodes_;
-    double radius_ = 0, piece_length_ = 0;
+    std::vector<double> radii_{0.0};  // by medium, or one for every beam
+    double piece_length_ = 0;
     size_t max_beams_;
     uint64_t truncated_ = 0;
     uint64_t escaped_ = 0;
@@ -115,7 +146,7 @@ inline bool closest_approach(const Vec3 &o_b, const Vec3 &u, const Vec3 &o_r, co
 }
 
 template <typename Visit>
-void BeamBvh::query(const Vec3 &o, const Vec3 &d, double tmax, Visit &&visit) const {
+void BeamBvh::query_pieces(const Vec3 &o, const Vec3 &d, double tmax, Visit &&visit) const {
     if (nodes_.empty()) return;
     const Vec3 inv(1 / d.x, 1 / d.y, 1 / d.z);
     int stack[kMaxStack];
@@ -130,16 +161,60 @@ void BeamBvh::query(const Vec3 &o, const Vec3 &d, double tmax, Visit &&visit) co
             stack[top++] = n.first;
             continue;
         }
+        for (int32_t i = n.first; i < n.first + n.count; ++i) visit(pieces_[i]);
+    }
+}
+
+template <typename Visit>
+void BeamBvh::query(const Vec3 &o, const Vec3 &d, double tmax, Visit &&visit) const {
+    const bool one_radius = radii_.size() == 1;
+    query_pieces(o, d, tmax, [&](const Piece &p) {
+        BeamHit h;
+        if (!closest_approach(p.origin, p.dir, o, d, h)) return;
+        const double r = one_radius ? radii_[0] : radius(beams_[size_t(p.beam)].medium);
+        if (!(h.distance < r) || h.t_ray < 0 || h.t_ray > tmax) return;
+        // The pair belongs to the piece holding t_beam.
+        if (!p.holds(h.t_beam)) return;
+        visit(p.beam, h);
+    });
+}
+
+template <typename Accept>
+double BeamBvh::kth_nearest(const Vec3 &o, const Vec3 &d, double tmax, size_t k, double max_radius,
+                            Accept &&accept) const {
+    if (nodes_.empty() || k == 0) return kInf;
+    std::vector<double> heap;  // the k smallest distances so far (a max-heap)
+    heap.reserve(k);
+    auto bound = [&] { return heap.size() == k ? heap.front() : max_radius; };
+    const Vec3 inv(1 / d.x, 1 / d.y, 1 / d.z);
+    int stack[kMaxStack];
+    int top = 0;
+    stack[top++] = 0;
+    while (top) {
+        const Node &n = nodes_[stack[--top]];
+        // Boxes of a tree of radius 0, grown by the distance still sought.
+        if (!ray_meets_box(o, d, inv, n.lo, n.hi, tmax, bound())) continue;
+        if (n.count == 0) {
+            stack[top++] = n.first + 1;
+            stack[top++] = n.first;
+            continue;
+        }
         for (int32_t i = n.first; i < n.first + n.count; ++i) {
             const Piece &p = pieces_[i];
             BeamHit h;
             if (!closest_approach(p.origin, p.dir, o, d, h)) continue;
-            if (!(h.distance < radius_) || h.t_ray < 0 || h.t_ray > tmax) continue;
-            // The pair belongs to the piece holding t_beam (the last piece is closed).
-            if (h.t_beam < p.t0 || h.t_beam > p.t1 || (h.t_beam == p.t1 && !p.last)) continue;
-            visit(p.beam, h);
+            if (!(h.distance < bound()) || h.t_ray < 0 || h.t_ray > tmax || !p.holds(h.t_beam)) continue;
+            if (!accept(p.beam)) continue;
+            if (heap.size() == k) {
+                std::pop_heap(heap.begin(), heap.end());
+                heap.back() = h.distance;
+            } else {
+                heap.push_back(h.distance);
+            }
+            std::push_heap(heap.begin(), heap.end());
         }
     }
+    return heap.size() == k ? heap.front() : kInf;
 }
 
 }  // namespace pgi

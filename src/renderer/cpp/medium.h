@@ -371,6 +371,31 @@ inline FreeFlight sample_free_flight(const Medium &m, const Vec3 &o, const Vec3 
     return f;
 }
 
+// Where a camera segment's medium estimate draws its weight: a free flight along [0, tmax)
+// (density sigma_t Tr, the weight of the estimate along the segment; the path's hero channel
+// where extinction is chromatic), and the mean free path 1 / sigma_t where it ends (t kInf: the
+// flight crosses the segment). The default radii of pm and ppb are measured around [0, t]
+// (methods/radii.py): in a dense medium only about a mean free path of the segment counts, and
+// a segment through empty parts of a grid estimates nothing.
+struct PilotFlight {
+    double t = kInf;
+    double free_path = 0;
+};
+
+inline PilotFlight pilot_flight(const Medium &m, const Vec3 &o, const Vec3 &d, double tmax, Sampler rng,
+                                const Sampler &path_rng) {
+    MediumStats stats;
+    SpectralMis spectral;
+    spectral.hero = hero_channel(path_rng);
+    FreeFlight f = sample_free_flight(m, o, d, tmax, rng, stats, spectral);
+    PilotFlight out;
+    if (!f.scattered) return out;
+    double sigma = m.type == MediumType::Homogeneous ? m.sigma_t[spectral.hero] : grid_sigma_t(m, o + d * f.t, stats);
+    out.t = f.t;
+    out.free_path = sigma > 0 ? 1 / sigma : kInf;
+    return out;
+}
+
 // Below this weight, ratio tracking plays Russian roulette: survive with
 // probability tr / kRouletteTransmittance at weight kRouletteTransmittance, else
 // stop at 0 (unbiased; saves the lookups that would refine a negligible value).

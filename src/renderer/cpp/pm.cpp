@@ -52,59 +52,192 @@ PhotonMapping::PhotonMapping(std::shared_ptr<const Scene> scene, std::shared_ptr
     : scene_(std::move(scene)), light_paths_(std::move(light_paths)), depth_(max_depth), seed_(seed),
       spp_per_iteration_(std::max(1, spp_per_iteration)), threads_(std::max(1, threads)),
       surface_schedule_(usable_radius(surface_radius), surface_alpha, kDimension),
-      volume_schedule_(usable_radius(volume_radius), volume_alpha, kDimension),
-      film_(scene_->camera.width, scene_->camera.height) {
+      volume_schedules_(std::max<size_t>(1, scene_->media.size()),
+                        RadiusSchedule(usable_radius(volume_radius), volume_alpha, kDimension)),
+      volume_radii_(volume_schedules_.size(), 0.0), film_(scene_->camera.width, scene_->camera.height) {
     paths_.resize(size_t(film_.width) * film_.height * spp_per_iteration_);
 }
+
+void PhotonMapping::set_surface_radius(double radius) {
+    surface_schedule_ = RadiusSchedule(usable_radius(radius), surface_schedule_.alpha, kDimension);
+}
+
+void PhotonMapping::set_volume_radius(int medium, double radius) {
+    if (medium < 0 || medium >= int(scene_->media.size())) throw std::out_of_range("pm: no such medium");
+    volume_schedules_[size_t(medium)] = RadiusSchedule(usable_radius(radius), volume_schedules_[0].alpha, kDimension);
+}
+
+const RadiusSchedule &PhotonMapping::volume_schedule(int medium) const {
+    if (medium < 0 || medium >= int(volume_schedules_.size())) throw std::out_of_range("pm: no such medium");
+    return volume_schedules_[size_t(medium)];
+}
+
+void PhotonMapping::set_pilot(size_t surface_neighbours, size_t volume_neighbours, double extent_fraction,
+                              int64_t path_stride) {
+    if (!(extent_fraction > 0)) throw std::invalid_argument("pm pilot: the extent fraction must be positive");
+    pilot_ = surface_neighbours > 0 || volume_neighbours > 0;
+    pilot_surface_k_ = surface_neighbours;
+    pilot_volume_k_ = volume_neighbours;
+    pilot_extent_fraction_ = extent_fraction;
+    pilot_stride_ = std::max<int64_t>(1, path_stride);
+}
+
+const RadiusPilotResult &PhotonMapping::pilot_result(int kernel) const {
+    if (kernel < -1 || kernel + 1 >= int(pilot_results_.size()))
+        throw std::out_of_range("pm: no pilot result for that kernel");
+    return pilot_results_[size_t(kernel + 1)];
+}
+
+namespace {
+
+// Half the diagonal of the box around `points` (0: none).
+template <typename Points>
+double bounding_radius(const Points &points) {
+    Vec3 lo(kInf), hi(-kInf);
+    bool any = false;
+    for (const Vec3 &p : points) {
+        for (int a = 0; a < 3; ++a) {
+            lo[a] = std::min(lo[a], p[a]);
+            hi[a] = std::max(hi[a], p[a]);
+        }
+        any = true;
+    }
+    return any ? 0.5 * length(hi - lo) : 0.0;
+}
+
+}  // namespace
 
 void PhotonMapping::begin(int64_t iteration) {
     const LightPaths &paths = *light_paths_;
     if (paths.iteration() != iteration)
         throw std::logic_error("pm: the light paths of iteration " + std::to_string(iteration) + " come first");
-    surface_photons_.clear();
-    volume_photons_.clear();
-    for (const PathVertex &v : paths.vertices()) {
-        if (v.kind == VertexKind::Surface) surface_photons_.push_back(v);
-        else if (v.kind == VertexKind::Medium) volume_photons_.push_back(v);
+    // The photons and their trees, once per iteration (the pilot's camera pass and the
+    // iteration's own share them).
+    if (photons_iteration_ != iteration) {
+        surface_photons_.clear();
+        volume_photons_.clear();
+        for (const PathVertex &v : paths.vertices()) {
+            if (v.kind == VertexKind::Surface) surface_photons_.push_back(v);
+            else if (v.kind == VertexKind::Medium) volume_photons_.push_back(v);
+        }
+        inv_light_paths_ = 1.0 / double(paths.paths_per_iteration());
+        std::vector<Vec3> points(surface_photons_.size());
+        for (size_t i = 0; i < points.size(); ++i) points[i] = surface_photons_[i].pos;
+        surface_tree_.build(points, threads_);
+        points.resize(volume_photons_.size());
+        for (size_t i = 0; i < points.size(); ++i) points[i] = volume_photons_[i].pos;
+        volume_tree_.build(points, threads_);
+        photons_iteration_ = iteration;
     }
-    inv_light_paths_ = 1.0 / double(paths.paths_per_iteration());
-    std::vector<Vec3> points(surface_photons_.size());
-    for (size_t i = 0; i < points.size(); ++i) points[i] = surface_photons_[i].pos;
-    surface_tree_.build(points, threads_);
-    points.resize(volume_photons_.size());
-    for (size_t i = 0; i < points.size(); ++i) points[i] = volume_photons_[i].pos;
-    volume_tree_.build(points, threads_);
+    active_.clear();
+    if (pilot_) {
+        // The pilot: the photons each kernel could gather, and a regular sample of the paths.
+        pilot_results_.assign(volume_schedules_.size() + 1, RadiusPilotResult{});
+        pilot_max_radius_.assign(pilot_results_.size(), 0.0);
+        std::vector<std::vector<Vec3>> by_kernel(pilot_results_.size());
+        for (const PathVertex &v : surface_photons_) by_kernel[0].push_back(v.pos);
+        for (const PathVertex &v : volume_photons_)
+            if (v.medium >= 0 && size_t(v.medium) + 1 < by_kernel.size()) by_kernel[size_t(v.medium) + 1].push_back(v.pos);
+        for (size_t k = 0; k < pilot_results_.size(); ++k) {
+            pilot_results_[k].extent = bounding_radius(by_kernel[k]);
+            pilot_max_radius_[k] = pilot_extent_fraction_ * pilot_results_[k].extent;
+        }
+        if (!depth_.allows(0)) return;
+        start_camera_wave(paths_, active_, scene_->camera, iteration, spp_per_iteration_,
+                          seed_ ^ stream_tag::kGatherPaths, threads_);
+        std::vector<int32_t> sampled;
+        for (int32_t i : active_)
+            if (i % pilot_stride_ == 0) sampled.push_back(i);
+            else paths_[size_t(i)].alive = false;
+        active_.swap(sampled);
+        return;
+    }
     stats_.surface_photons += surface_photons_.size();
     stats_.volume_photons += volume_photons_.size();
     // The iteration's radii (checked again: the schedule shrinks them).
     surface_radius_ = usable_radius(surface_schedule_.radius(iteration));
-    volume_radius_ = usable_radius(volume_schedule_.radius(iteration));
+    for (size_t m = 0; m < volume_schedules_.size(); ++m)
+        volume_radii_[m] = usable_radius(volume_schedules_[m].radius(iteration));
 
-    active_.clear();
     if (!depth_.allows(0)) return;  // Mitsuba: max_depth 0 renders black
     start_camera_wave(paths_, active_, scene_->camera, iteration, spp_per_iteration_,
                       seed_ ^ stream_tag::kGatherPaths, threads_);
 }
 
+// The plane of the surface the path's current ray left, if any (boundary_kernels.h).
+BoundaryPlane PhotonMapping::entry_plane(const GatherPath &p) const {
+    if (p.start_triangle < 0) return {};
+    return boundary_plane(scene_->triangles[size_t(p.start_triangle)].n, p.dir);
+}
+
 // Beam radiance estimate along [0, t_hit] (Jarosz et al. 2008): every volume photon
 // of this medium whose disc crosses the segment, attenuated to the camera-path vertex.
-RGB PhotonMapping::beam_estimate(const GatherPath &p, double t_hit, double radius, Sampler rng,
-                                  MediumStats &ms, uint64_t &accepted) const {
+// Near the planes the segment starts and ends on, the discs lie parallel to them
+// (boundary_kernels.h): a photon counts where the plane through it crosses the ray.
+RGB PhotonMapping::beam_estimate(const GatherPath &p, double t_hit, const BoundaryPlane &exit, double radius,
+                                  Sampler rng, MediumStats &ms, uint64_t &accepted) const {
     const Medium &m = scene_->media[p.medium];
     double tmax = std::isfinite(t_hit) ? t_hit + p.lead : 1e30;
     const Vec3 origin = segment_origin(p);
     TransmittanceTrack track(m, origin, p.dir, tmax, rng, ms);
+    const KernelZones zones = kernel_zones(p.dir, tmax, radius, entry_plane(p), exit);
+    const double r2 = radius * radius;
     RGB sum(0.0);
     const double kernel = 1 / (kPi * radius * radius);
     Vec3 to_camera = -p.dir;
-    volume_tree_.query_ray(origin, p.dir, tmax, radius, [&](uint32_t i, double t, double) {
+    // Photons that an aligned disc may reach lie up to r beyond its zone along the ray.
+    const double lo = zones.lo(radius), hi = zones.hi(radius);
+    const Vec3 query_origin = origin + p.dir * lo;
+    // Sum of the weights (Tr at the photon's t, over |d.n|) of the discs that hold photon i.
+    auto aligned = [&](const BoundaryPlane &plane, double t0, double t1, const Vec3 &pos) {
+        double t = dot(pos - origin, plane.normal) / dot(p.dir, plane.normal);
+        if (!(t >= t0 && t < t1)) return RGB(0.0);
+        Vec3 e = pos - (origin + p.dir * t);
+        if (!(dot(e, e) < r2)) return RGB(0.0);
+        return track.at(t) / plane.cosine;
+    };
+    volume_tree_.query_ray(query_origin, p.dir, hi - lo, radius, [&](uint32_t i, double t, double d2) {
         const PathVertex &ph = volume_photons_[i];
         if (ph.medium != p.medium) return;
         if (!depth_.allows(ph.depth + p.specular)) return;
+        t += lo;
+        RGB w(0.0);
+        bool before_exit = zones.exit_start < tmax ? t < zones.exit_start : t <= tmax;
+        if (t >= zones.entry_end && before_exit && d2 < r2) w += track.at(t);
+        if (zones.entry_end > 0) w += aligned(zones.entry, 0.0, zones.entry_end, ph.pos);
+        if (zones.exit_start < tmax) w += aligned(zones.exit, zones.exit_start, tmax, ph.pos);
+        if (is_black(w)) return;
         ++accepted;
-        sum += track.at(t) * ph.throughput * phase_eval(m.phase, ph.wi, to_camera);
+        sum += w * ph.throughput * phase_eval(m.phase, ph.wi, to_camera);
     });
     return sum * (kernel * inv_light_paths_);
+}
+
+// Pilot: the distance within which the k nearest photons of its medium lie around the segment
+// up to a free flight along it (pilot_flight); none where the flight crosses the segment.
+double PhotonMapping::pilot_segment(const GatherPath &p, double t_hit, Sampler rng, double &free_path) const {
+    if (pilot_volume_k_ == 0) return kNoRecord;
+    double tmax = std::isfinite(t_hit) ? t_hit + p.lead : 1e30;
+    const Vec3 origin = segment_origin(p);
+    const PilotFlight flight = pilot_flight(scene_->media[p.medium], origin, p.dir, tmax, rng, p.rng);
+    if (!std::isfinite(flight.t)) return kNoRecord;
+    free_path = flight.free_path;
+    return volume_tree_.kth_nearest_to_segment(
+        origin, p.dir, flight.t, pilot_volume_k_, pilot_max_radius_[size_t(p.medium) + 1], [&](uint32_t i) {
+            const PathVertex &ph = volume_photons_[i];
+            return ph.medium == p.medium && depth_.allows(ph.depth + p.specular);
+        });
+}
+
+// Pilot: the distance within which the k nearest photons that x's estimate would take lie.
+double PhotonMapping::pilot_surface(const GatherPath &p, int tri, const Vec3 &x) const {
+    const Triangle &T = scene_->triangles[size_t(tri)];
+    // None at the back of a one-sided surface: no estimate is made there.
+    if (pilot_surface_k_ == 0 || dot(-p.dir, T.n) <= 0) return kNoRecord;
+    return surface_tree_.kth_nearest_to_point(x, pilot_surface_k_, pilot_max_radius_[0], [&](uint32_t i) {
+        const PathVertex &ph = surface_photons_[i];
+        return surface_photon_counts(*scene_, T, ph) && depth_.allows(ph.depth + p.specular);
+    });
 }
 
 // Surface density estimate at x (Jensen 1996) with a constant kernel 1 / (pi r^2).
@@ -122,7 +255,13 @@ RGB PhotonMapping::surface_estimate(const GatherPath &p, int tri, const Vec3 &x,
 size_t PhotonMapping::shade(const Hits &hits) {
     const Scene &scene = *scene_;
     hits.expect(active_.size(), "pm shade");
-    const double surface_radius = surface_radius_, volume_radius = volume_radius_;
+    const bool pilot = pilot_;
+    if (pilot) {
+        pilot_slots_.assign(2 * hits.count, kNoRecord);
+        pilot_slot_free_path_.assign(hits.count, kNoRecord);
+        pilot_slot_medium_.assign(hits.count, -1);
+    }
+    const double surface_radius = surface_radius_;
     uint64_t lookups = 0, surface_accepted = 0, volume_accepted = 0;
     const DepthLimit specular_limit = depth_.unlimited() ? DepthLimit(kMaxSpecularBounces) : depth_;
 #pragma omp parallel for schedule(dynamic, 64) num_threads(threads_) \
@@ -131,13 +270,17 @@ size_t PhotonMapping::shade(const Hits &hits) {
         GatherPath &p = paths_[active_[k]];
         int tri = hits.prim[k];
         double t_hit = tri >= 0 ? double(hits.tfar[k]) : kInf;
-        if (p.medium >= 0) {
+        if (p.medium >= 0 && pilot) {
+            pilot_slots_[2 * size_t(k)] = pilot_segment(p, t_hit, p.rng.fork(), pilot_slot_free_path_[size_t(k)]);
+            pilot_slot_medium_[size_t(k)] = p.medium;
+        } else if (p.medium >= 0) {
             MediumStats local;
             const Medium &m = scene.media[p.medium];
+            const BoundaryPlane exit = tri >= 0 ? boundary_plane(scene.triangles[size_t(tri)].n, p.dir) : BoundaryPlane{};
             // Each medium segment gets fresh streams: segments split by null surfaces
             // would otherwise share their random numbers and correlate their estimates.
-            p.radiance += p.throughput * beam_estimate(p, t_hit, volume_radius, p.rng.fork(), local,
-                                                       volume_accepted);
+            p.radiance += p.throughput * beam_estimate(p, t_hit, exit, volume_radii_[size_t(p.medium)], p.rng.fork(),
+                                                       local, volume_accepted);
             if (tri >= 0) {
                 Sampler rng = p.rng.fork();
                 p.throughput *= transmittance(m, segment_origin(p), p.dir, t_hit + p.lead, rng, local);
@@ -155,10 +298,12 @@ size_t PhotonMapping::shade(const Hits &hits) {
         if (depth_.allows(p.specular)) p.radiance += p.throughput * scene.emitted(tri, p.dir);
         if (mat.type == MaterialType::Null) {
             cross_null_boundary(scene, p, tri, x);
+            p.start_triangle = tri;
             continue;
         }
         if (!mat.is_delta()) {
-            p.radiance += p.throughput * surface_estimate(p, tri, x, surface_radius, surface_accepted);
+            if (pilot) pilot_slots_[2 * size_t(k) + 1] = pilot_surface(p, tri, x);
+            else p.radiance += p.throughput * surface_estimate(p, tri, x, surface_radius, surface_accepted);
             p.alive = false;
             continue;
         }
@@ -168,6 +313,18 @@ size_t PhotonMapping::shade(const Hits &hits) {
             continue;
         }
         advance_by_bsdf(scene, p, p.throughput, tri, x, /*radiance=*/true);
+        p.start_triangle = tri;
+    }
+    if (pilot) {
+        // In hit order: the same records whatever the thread count.
+        for (size_t k = 0; k < hits.count; ++k) {
+            if (pilot_slots_[2 * k] != kNoRecord) {
+                auto &result = pilot_results_[size_t(pilot_slot_medium_[k]) + 1];
+                result.distances.push_back(pilot_slots_[2 * k]);
+                result.free_paths.push_back(pilot_slot_free_path_[k]);
+            }
+            if (pilot_slots_[2 * k + 1] != kNoRecord) pilot_results_[0].distances.push_back(pilot_slots_[2 * k + 1]);
+        }
     }
     medium_stats_.density_lookups += lookups;
     stats_.surface_lookups += surface_accepted;
@@ -180,8 +337,9 @@ size_t PhotonMapping::next_rays(const RayBuffers &out) {
 }
 
 void PhotonMapping::end() {
-    add_paths_to_film(film_, paths_, spp_per_iteration_);
     active_.clear();
+    if (pilot_) return;  // a pilot estimates nothing
+    add_paths_to_film(film_, paths_, spp_per_iteration_);
 }
 
 }  // namespace pgi

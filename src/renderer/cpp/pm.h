@@ -20,7 +20,10 @@
 //          [0, t_hit] (Jarosz et al. 2008, eq. 15 with a constant 2D kernel):
 //            L += sum_photons Tr(0, t_p) phase(w_p, -d) power_p / (N pi r_v^2)
 //          over the photons of that medium whose disc of radius r_v the segment
-//          crosses; the path then carries Tr(0, t_hit) to the surface;
+//          crosses, r_v the medium's own; near the surfaces the segment starts and ends on,
+//          the disc lies parallel to them instead (boundary_kernels.h: it no longer reaches
+//          past them, where there are no photons); the path then carries Tr(0, t_hit) to
+//          the surface;
 //        - emitters hit (directly or through specular chains) add Le;
 //        - at a diffuse surface, the density estimate (Jensen 1996, eq. 6):
 //            L += sum_photons f(w_p, w_o) power_p / (N pi r_s^2)
@@ -31,11 +34,18 @@
 // The estimate is biased by the kernel (blur over r); pm keeps r fixed (alpha = 1), sppm
 // shrinks it per iteration (radius_schedule.h) so the mean of the iterations converges.
 // Both kernels are 2D discs (the surface estimate, and the beam radiance estimate around
-// the camera ray), so both schedules have dimension 2.
+// the camera ray), so both schedules have dimension 2. Each medium has a schedule of its own
+// (the same alpha): the default radii differ by medium (methods/pm.py).
+// The pilot pass (set_pilot), run once before the first iteration with photons and camera
+// paths of its own, estimates nothing: each camera-path vertex at a diffuse surface and each
+// medium segment records the distance within which its k nearest photons lie (the photons it
+// would gather, kth_nearest_* of photon_map.h); methods/pm.py derives the default radii from
+// them.
 #pragma once
 
 #include <memory>
 
+#include "boundary_kernels.h"
 #include "camera_path.h"  // camera samples and wave bookkeeping shared with pt and ppb
 #include "radius_schedule.h"
 #include "subpaths.h"
@@ -53,6 +63,7 @@ struct GatherPath {
     int specular = 0;   // real (specular) scattering events so far
     int medium = -1;
     int null_crossings = 0;
+    int start_triangle = -1;  // the surface the current ray left (-1: the camera)
     bool alive = false;
     Sampler rng;
 };
@@ -62,11 +73,21 @@ struct PhotonGatherStats {
     uint64_t surface_lookups = 0, volume_lookups = 0;  // photons accepted by queries
 };
 
+// What a pilot pass measures for one kernel (the surfaces, or one medium): the distance within
+// which each query's k nearest photons lie (kInf: fewer than k within max_radius), and the
+// bounding-sphere radius of the photons the kernel could gather (0: none).
+struct RadiusPilotResult {
+    std::vector<double> distances;
+    std::vector<double> free_paths;  // of the segment queries: 1 / sigma_t where their flights ended
+    double extent = 0;
+};
+
 class PhotonMapping : public SingleLane<PhotonMapping>, public NoShadowRays {
 public:
     static constexpr int kDimension = 2;  // of both kernels (see above)
 
-    // radius schedules: r_1 and alpha of the surface and of the volume estimate.
+    // radius schedules: r_1 and alpha of the surface and of the volume estimate (every medium's
+    // until set_volume_radius).
     PhotonMapping(std::shared_ptr<const Scene> scene, std::shared_ptr<const LightPaths> light_paths, int max_depth,
                   uint64_t seed, int spp_per_iteration, int threads, double surface_radius, double surface_alpha,
                   double volume_radius, double volume_alpha);
@@ -80,16 +101,32 @@ public:
     // Pass 3: path radiance to the film, in path order.
     void end();
 
+    // r_1 of the surface schedule, or of one medium's.
+    void set_surface_radius(double radius);
+    void set_volume_radius(int medium, double radius);
     const RadiusSchedule &surface_schedule() const { return surface_schedule_; }
-    const RadiusSchedule &volume_schedule() const { return volume_schedule_; }
+    const RadiusSchedule &volume_schedule(int medium) const;
+    int medium_count() const { return int(volume_schedules_.size()); }
+
+    // Turns this kernel into a pilot (above), or back (both k 0): queries of the camera paths
+    // whose index is a multiple of path_stride look for their k nearest photons (0: that kind of
+    // query records nothing), no farther than extent_fraction of the bounding radius of the
+    // photons of their kernel. After a pass, pilot_result(-1) holds the surfaces', pilot_result(m)
+    // medium m's.
+    void set_pilot(size_t surface_neighbours, size_t volume_neighbours, double extent_fraction, int64_t path_stride);
+    bool pilot() const { return pilot_; }
+    const RadiusPilotResult &pilot_result(int kernel) const;
     const Film &film() const { return film_; }
     const Scene &scene() const { return *scene_; }
     const PhotonGatherStats &stats() const { return stats_; }
     uint64_t density_lookups() const { return medium_stats_.density_lookups; }
 
 private:
-    RGB beam_estimate(const GatherPath &p, double t_hit, double radius, Sampler rng, MediumStats &ms,
-                      uint64_t &accepted) const;
+    RGB beam_estimate(const GatherPath &p, double t_hit, const BoundaryPlane &exit, double radius, Sampler rng,
+                      MediumStats &ms, uint64_t &accepted) const;
+    BoundaryPlane entry_plane(const GatherPath &p) const;
+    double pilot_segment(const GatherPath &p, double t_hit, Sampler rng, double &free_path) const;
+    double pilot_surface(const GatherPath &p, int tri, const Vec3 &x) const;
     RGB surface_estimate(const GatherPath &p, int tri, const Vec3 &x, double radius, uint64_t &accepted) const;
 
     std::shared_ptr<const Scene> scene_;
@@ -97,11 +134,27 @@ private:
     DepthLimit depth_;
     uint64_t seed_;
     int spp_per_iteration_, threads_;
-    RadiusSchedule surface_schedule_, volume_schedule_;
-    double surface_radius_ = 0, volume_radius_ = 0;  // this iteration's
+    RadiusSchedule surface_schedule_;
+    std::vector<RadiusSchedule> volume_schedules_;  // by medium
+    double surface_radius_ = 0;                     // this iteration's
+    std::vector<double> volume_radii_;              // this iteration's, by medium
+    // The pilot: neighbours sought, search bounds (fraction of each kernel's extent, and the
+    // resulting radius by kernel), its sampled paths, its results.
+    bool pilot_ = false;
+    size_t pilot_surface_k_ = 0, pilot_volume_k_ = 0;
+    double pilot_extent_fraction_ = 0;
+    std::vector<double> pilot_max_radius_;  // [0]: surfaces, [1 + m]: medium m
+    int64_t pilot_stride_ = 1;
+    std::vector<RadiusPilotResult> pilot_results_;  // [0]: surfaces, [1 + m]: medium m
+    // Per hit of a shade pass: its segment's distance and its surface's (kNoRecord: none).
+    static constexpr double kNoRecord = -1;
+    std::vector<double> pilot_slots_;
+    std::vector<double> pilot_slot_free_path_;  // the mean free path where its flight ended
+    std::vector<int> pilot_slot_medium_;
     std::vector<GatherPath> paths_;
     std::vector<int32_t> active_;
-    // This iteration's photons.
+    // This iteration's photons (of the light paths of iteration photons_iteration_).
+    int64_t photons_iteration_ = -1;
     std::vector<PathVertex> surface_photons_, volume_photons_;
     PointTree surface_tree_, volume_tree_;
     double inv_light_paths_ = 0;

@@ -40,7 +40,17 @@ static void bind_pm(nb::module_ &m) {
                  t.query_ray(vec(o), normalize(vec(d)), tmax, r, [&](uint32_t i, double, double) { out.push_back(i); });
                  size_t n = out.size();
                  return to_numpy(std::move(out), {n});
-             }, "origin"_a, "direction"_a, "tmax"_a, "radius"_a);
+             }, "origin"_a, "direction"_a, "tmax"_a, "radius"_a)
+        // The distance within which the k nearest points lie (inf: fewer within max_radius).
+        .def("kth_nearest_to_point",
+             [](const PointTree &t, V3 c, size_t k, double max_radius) {
+                 return t.kth_nearest_to_point(vec(c), k, max_radius, [](uint32_t) { return true; });
+             }, "center"_a, "k"_a, "max_radius"_a)
+        .def("kth_nearest_to_segment",
+             [](const PointTree &t, V3 o, V3 d, double tmax, size_t k, double max_radius) {
+                 return t.kth_nearest_to_segment(vec(o), normalize(vec(d)), tmax, k, max_radius,
+                                                 [](uint32_t) { return true; });
+             }, "origin"_a, "direction"_a, "tmax"_a, "k"_a, "max_radius"_a);
 
     m.def("radius_schedule",
           [](double r1, double alpha, int dimension, int64_t iterations) {
@@ -64,12 +74,30 @@ static void bind_pm(nb::module_ &m) {
              "surface_radius"_a, "surface_alpha"_a, "volume_radius"_a, "volume_alpha"_a)
         .def("surface_radius", [](const PhotonMapping &g, int64_t it) { return g.surface_schedule().radius(it); },
              "iteration"_a)
-        .def("volume_radius", [](const PhotonMapping &g, int64_t it) { return g.volume_schedule().radius(it); },
-             "iteration"_a)
+        .def("volume_radius",
+             [](const PhotonMapping &g, int64_t it, int medium) { return g.volume_schedule(medium).radius(it); },
+             "iteration"_a, "medium"_a = 0)
+        .def("set_surface_radius", &PhotonMapping::set_surface_radius, "radius"_a)
+        .def("set_volume_radius", &PhotonMapping::set_volume_radius, "medium"_a, "radius"_a)
+        .def_prop_ro("medium_count", &PhotonMapping::medium_count)
+        .def("set_pilot", &PhotonMapping::set_pilot, "surface_neighbours"_a, "volume_neighbours"_a,
+             "extent_fraction"_a, "path_stride"_a)
+        .def_prop_ro("pilot", &PhotonMapping::pilot)
+        // (distances, extent, free paths) of a pilot pass: kernel -1 the surfaces', m medium m's.
+        .def("pilot_result",
+             [](const PhotonMapping &g, int kernel) {
+                 const RadiusPilotResult &r = g.pilot_result(kernel);
+                 std::vector<double> d = r.distances;
+                 size_t n = d.size();
+                 std::vector<double> f = r.free_paths;
+                 size_t nf = f.size();
+                 return nb::make_tuple(to_numpy(std::move(d), {n}), r.extent, to_numpy(std::move(f), {nf}));
+             },
+             "kernel"_a)
         .def_prop_ro("kernels",
                      [](const PhotonMapping &g) {
-                         nb::list out;  // (alpha, dimension) of each blur: surfaces, then media
-                         for (const RadiusSchedule *s : {&g.surface_schedule(), &g.volume_schedule()})
+                         nb::list out;  // (alpha, dimension) of each blur: surfaces, then media (one alpha)
+                         for (const RadiusSchedule *s : {&g.surface_schedule(), &g.volume_schedule(0)})
                              out.append(nb::make_tuple(s->alpha, s->dimension));
                          return out;
                      })

@@ -12,7 +12,8 @@ ProgressivePhotonBeams::ProgressivePhotonBeams(std::shared_ptr<const Scene> scen
       depth_(max_depth), seed_(seed), spp_per_iteration_(std::max(1, spp_per_iteration)),
       threads_(std::max(1, threads)), max_piece_length_(max_piece_length),
       gather_diffuse_bounces_(gather_diffuse_bounces),
-      film_(scene_->camera.width, scene_->camera.height), bvh_(max_beams), schedule_(radius, alpha, 1) {
+      film_(scene_->camera.width, scene_->camera.height), bvh_(max_beams),
+      schedules_(std::max<size_t>(1, scene_->media.size()), RadiusSchedule(radius, alpha, 1)) {
     paths_.resize(size_t(film_.width) * film_.height * spp_per_iteration_);
 }
 
@@ -20,6 +21,48 @@ void ProgressivePhotonBeams::set_surface_photons(double radius, double alpha) {
     surface_photons_ = radius > 0;
     if (surface_photons_) surface_schedule_ = RadiusSchedule(radius, alpha, 2);
 }
+
+void ProgressivePhotonBeams::set_beam_radius(int medium, double radius) {
+    if (medium < 0 || medium >= int(scene_->media.size())) throw std::out_of_range("ppb: no such medium");
+    schedules_[size_t(medium)] = RadiusSchedule(radius, schedules_[0].alpha, 1);
+}
+
+const RadiusSchedule &ProgressivePhotonBeams::beam_schedule(int medium) const {
+    if (medium < 0 || medium >= int(schedules_.size())) throw std::out_of_range("ppb: no such medium");
+    return schedules_[size_t(medium)];
+}
+
+void ProgressivePhotonBeams::set_pilot(size_t surface_neighbours, size_t beam_neighbours, double extent_fraction,
+                                       int64_t path_stride) {
+    if (!(extent_fraction > 0)) throw std::invalid_argument("ppb pilot: the extent fraction must be positive");
+    pilot_ = surface_neighbours > 0 || beam_neighbours > 0;
+    pilot_surface_k_ = surface_photons_ ? surface_neighbours : 0;
+    pilot_beam_k_ = beam_neighbours;
+    pilot_extent_fraction_ = extent_fraction;
+    pilot_stride_ = std::max<int64_t>(1, path_stride);
+}
+
+const BeamPilotResult &ProgressivePhotonBeams::pilot_result(int kernel) const {
+    if (kernel < -1 || kernel + 1 >= int(pilot_results_.size()))
+        throw std::out_of_range("ppb: no pilot result for that kernel");
+    return pilot_results_[size_t(kernel + 1)];
+}
+
+namespace {
+
+// Half the diagonal of the box around the points (0: none).
+struct BoundingBox {
+    Vec3 lo{kInf}, hi{-kInf};
+    void add(const Vec3 &p) {
+        for (int a = 0; a < 3; ++a) {
+            lo[a] = std::min(lo[a], p[a]);
+            hi[a] = std::max(hi[a], p[a]);
+        }
+    }
+    double radius() const { return lo.x <= hi.x ? 0.5 * length(hi - lo) : 0.0; }
+};
+
+}  // namespace
 
 void ProgressivePhotonBeams::begin(int64_t iteration) {
     const LightPaths &light = *light_paths_;
@@ -35,11 +78,12 @@ void ProgressivePhotonBeams::begin(int64_t iteration) {
                 points.push_back(v.pos);
             }
         photon_tree_.build(points);
-        photon_radius_ = surface_schedule_.radius(iteration);
-        photon_scale_ = 1.0 / (kPi * photon_radius_ * photon_radius_ * double(light.paths_per_iteration()));
-        stats_.photons += photons_.size();
+        if (!pilot_) {
+            photon_radius_ = surface_schedule_.radius(iteration);
+            photon_scale_ = 1.0 / (kPi * photon_radius_ * photon_radius_ * double(light.paths_per_iteration()));
+            stats_.photons += photons_.size();
+        }
     }
-    double radius = schedule_.radius(iteration);
     // Short beams: each recorded medium segment up to its sampled collision (or
     // the surface when none was sampled); the collision itself is a vertex of
     // the next segment, so no flux is counted twice.
@@ -58,20 +102,83 @@ void ProgressivePhotonBeams::begin(int64_t iteration) {
         b.depth = s.depth;
         beams.push_back(b);
     }
-    bvh_.build(std::move(beams), radius, max_piece_length_);
-    stats_.beams += bvh_.beams().size();
-    beam_scale_ = 1.0 / (2.0 * radius * double(light.paths_per_iteration()));
-
     active_.clear();
     shadow_.clear();
+    if (pilot_) {
+        // The pilot: what each kernel could gather, a tree of radius 0 (kth_nearest grows its
+        // boxes), and a regular sample of the paths.
+        pilot_results_.assign(schedules_.size() + 1, BeamPilotResult{});
+        std::vector<BoundingBox> boxes(pilot_results_.size());
+        for (const PathVertex &v : photons_) boxes[0].add(v.pos);
+        for (const Beam &b : beams)
+            if (std::isfinite(b.length) && size_t(b.medium) + 1 < boxes.size()) {
+                boxes[size_t(b.medium) + 1].add(b.origin);
+                boxes[size_t(b.medium) + 1].add(b.origin + b.dir * b.length);
+            }
+        pilot_max_radius_.assign(boxes.size(), 0.0);
+        for (size_t k = 0; k < boxes.size(); ++k) {
+            pilot_results_[k].extent = boxes[k].radius();
+            pilot_max_radius_[k] = pilot_extent_fraction_ * pilot_results_[k].extent;
+        }
+        bvh_.build(std::move(beams), 0.0, max_piece_length_);
+        if (!depth_.allows(0)) return;
+        start_camera_wave(paths_, active_, scene_->camera, iteration, spp_per_iteration_,
+                          seed_ ^ stream_tag::kBeamGatherPaths, threads_);
+        std::vector<int32_t> sampled;
+        for (int32_t i : active_)
+            if (i % pilot_stride_ == 0) sampled.push_back(i);
+            else paths_[size_t(i)].alive = false;
+        active_.swap(sampled);
+        return;
+    }
+    beam_radii_.resize(schedules_.size());
+    beam_scales_.resize(schedules_.size());
+    for (size_t m = 0; m < schedules_.size(); ++m) {
+        beam_radii_[m] = schedules_[m].radius(iteration);
+        beam_scales_[m] = 1.0 / (2.0 * beam_radii_[m] * double(light.paths_per_iteration()));
+    }
+    bvh_.build(std::move(beams), beam_radii_, max_piece_length_);
+    stats_.beams += bvh_.beams().size();
+
     if (!depth_.allows(0)) return;  // Mitsuba: max_depth 0 renders black
     // A stream key distinct from the light paths' (which use (seed, iteration, path)).
     start_camera_wave(paths_, active_, scene_->camera, iteration, spp_per_iteration_,
                       seed_ ^ stream_tag::kBeamGatherPaths, threads_);
 }
 
-// BB1D over the camera segment [0, t_end) of path p in its medium.
-RGB ProgressivePhotonBeams::gather(BeamGatherPath &p, double t_end, MediumStats &local, uint64_t &pairs) const {
+// The plane of the surface the path's current ray left, if any (boundary_kernels.h).
+BoundaryPlane ProgressivePhotonBeams::entry_plane(const BeamGatherPath &p) const {
+    if (p.start_triangle < 0) return {};
+    return boundary_plane(scene_->triangles[size_t(p.start_triangle)].n, p.dir);
+}
+
+namespace {
+
+// Where the ray o + t d meets the beam b translated by u * blur (blur not in the plane of the
+// two directions): the solution of t d - s b.dir - u blur = b.origin - o (Cramer's rule), and
+// the determinant's magnitude, the estimate's Jacobian (sin(theta) for the common
+// perpendicular). False if the system is (nearly) singular.
+struct BlurredMeeting {
+    double t, s, u, jacobian;
+};
+inline bool blurred_meeting(const Vec3 &o, const Vec3 &d, const Beam &b, const Vec3 &blur, BlurredMeeting &out) {
+    const Vec3 w = b.origin - o, nb = -b.dir, nblur = -blur;
+    const double det = dot(d, cross(nb, nblur));
+    if (!(std::abs(det) > kMinBeamSine * kMinBeamSine)) return false;
+    out.t = dot(w, cross(nb, nblur)) / det;
+    out.s = dot(d, cross(w, nblur)) / det;
+    out.u = dot(d, cross(nb, w)) / det;
+    out.jacobian = std::abs(det);
+    return true;
+}
+
+}  // namespace
+
+// BB1D over the camera segment [0, t_end) of path p in its medium. Near the planes the segment
+// starts and ends on, the blur lies in them (boundary_kernels.h): the common perpendicular m of
+// ray and beam projected on the plane.
+RGB ProgressivePhotonBeams::gather(BeamGatherPath &p, double t_end, const BoundaryPlane &exit, MediumStats &local,
+                                   uint64_t &pairs) const {
     RGB sum(0.0);
     // A beam of depth k gathered after p.depth surface events makes a path of
     // k + 1 + p.depth real events; none is in range if one of depth 0 is not.
@@ -79,28 +186,83 @@ RGB ProgressivePhotonBeams::gather(BeamGatherPath &p, double t_end, MediumStats 
     const Medium &m = scene_->media[p.medium];
     const bool homogeneous = m.type == MediumType::Homogeneous;
     const Vec3 wo = -p.dir;
+    const double radius = beam_radii_[size_t(p.medium)];
+    const KernelZones zones = kernel_zones(p.dir, t_end, radius, entry_plane(p), exit);
     // t_end and the hits' t_ray count from the segment's origin, the lead behind p.pos.
     const Vec3 origin = segment_origin(p);
-    bvh_.query(origin, p.dir, t_end, [&](int32_t index, const BeamHit &h) {
-        const Beam &b = bvh_.beams()[index];
-        if (b.medium != p.medium || !depth_.allows(b.depth + 1 + p.depth)) return;
+    // A pair: the camera point at t, the beam point at s, over the Jacobian of its blur.
+    auto add = [&](const Beam &b, double t, double s, double jacobian) {
         RGB weight;
         if (homogeneous) {
             // Camera transmittance in closed form; the short beam's Tr(s) / P(t > s)
             // with the light path's hero-channel pdf (subpaths.h).
-            RGB beam_tr = beer_lambert(m.sigma_t, h.t_beam);
+            RGB beam_tr = beer_lambert(m.sigma_t, s);
             double survival = mean(b.spectral_ratio * beam_tr);
             if (!(survival > 0)) return;
-            weight = beer_lambert(m.sigma_t, h.t_ray) * m.sigma_t * m.albedo * beam_tr / survival;
+            weight = beer_lambert(m.sigma_t, t) * m.sigma_t * m.albedo * beam_tr / survival;
         } else {
             // Gray extinction: both short-ray weights are 1.
-            weight = m.albedo * grid_sigma_t(m, origin + p.dir * h.t_ray, local);
+            weight = m.albedo * grid_sigma_t(m, origin + p.dir * t, local);
         }
         double phase = phase_eval(m.phase, wo, -b.dir);
-        sum += weight * b.power * (phase / h.sin_theta);
+        sum += weight * b.power * (phase / jacobian);
         ++pairs;
+    };
+    // In an aligned zone [t0, t1) with plane normal n: the blur along m projected on the plane.
+    auto aligned = [&](const Beam &b, const BeamBvh::Piece &piece, const BoundaryPlane &plane, double t0, double t1) {
+        Vec3 m_dir = cross(p.dir, b.dir);
+        double sine = length(m_dir);
+        if (!(sine > kMinBeamSine)) return;
+        m_dir = m_dir / sine;
+        Vec3 blur = m_dir - plane.normal * dot(m_dir, plane.normal);
+        double blur_length = length(blur);
+        if (!(blur_length > 0)) return;
+        BlurredMeeting h;
+        if (!blurred_meeting(origin, p.dir, b, blur / blur_length, h)) return;
+        if (!(std::abs(h.u) < radius) || !(h.t >= t0 && h.t < t1) || !piece.holds(h.s)) return;
+        add(b, h.t, h.s, h.jacobian);
+    };
+    bvh_.query_pieces(origin, p.dir, t_end, [&](const BeamBvh::Piece &piece) {
+        const Beam &b = bvh_.beams()[size_t(piece.beam)];
+        if (b.medium != p.medium || !depth_.allows(b.depth + 1 + p.depth)) return;
+        // Lines farther apart than r meet neither kernel: the aligned blur moves the beam by
+        // |u| = distance / (m.b) >= distance to meet the ray (and near-parallel pairs, which
+        // closest_approach refuses, are refused by both).
+        BeamHit h;
+        if (!closest_approach(piece.origin, piece.dir, origin, p.dir, h) || !(h.distance < radius)) return;
+        if (piece.holds(h.t_beam)) {
+            bool before_exit = zones.exit_start < t_end ? h.t_ray < zones.exit_start : h.t_ray <= t_end;
+            if (h.t_ray >= zones.entry_end && before_exit) add(b, h.t_ray, h.t_beam, h.sin_theta);
+        }
+        if (zones.entry_end > 0) aligned(b, piece, zones.entry, 0.0, zones.entry_end);
+        if (zones.exit_start < t_end) aligned(b, piece, zones.exit, zones.exit_start, t_end);
     });
-    return sum * beam_scale_;
+    return sum * beam_scales_[size_t(p.medium)];
+}
+
+// Pilot: the distance within which the k nearest beams lie around the segment up to a free
+// flight along it (pilot_flight); none where the flight crosses the segment.
+double ProgressivePhotonBeams::pilot_beams(const BeamGatherPath &p, double t_end, Sampler rng, double &free_path) const {
+    if (pilot_beam_k_ == 0 || !depth_.allows(1 + p.depth)) return kNoRecord;
+    const Vec3 origin = segment_origin(p);
+    const PilotFlight flight = pilot_flight(scene_->media[p.medium], origin, p.dir, t_end, rng, p.rng);
+    if (!std::isfinite(flight.t)) return kNoRecord;
+    free_path = flight.free_path;
+    return bvh_.kth_nearest(origin, p.dir, flight.t, pilot_beam_k_, pilot_max_radius_[size_t(p.medium) + 1],
+                            [&](int32_t index) {
+                                const Beam &b = bvh_.beams()[size_t(index)];
+                                return b.medium == p.medium && depth_.allows(b.depth + 1 + p.depth);
+                            });
+}
+
+// Pilot: the distance within which the k nearest surface photons of x's estimate lie.
+double ProgressivePhotonBeams::pilot_photons(const BeamGatherPath &p, int tri, const Vec3 &x) const {
+    const Triangle &T = scene_->triangles[size_t(tri)];
+    if (pilot_surface_k_ == 0 || dot(-p.dir, T.n) <= 0) return kNoRecord;
+    return photon_tree_.kth_nearest_to_point(x, pilot_surface_k_, pilot_max_radius_[0], [&](uint32_t i) {
+        const PathVertex &v = photons_[i];
+        return surface_photon_counts(*scene_, T, v) && depth_.allows(v.depth + p.depth - 1);
+    });
 }
 
 size_t ProgressivePhotonBeams::shade(const Hits &hits) {
@@ -108,6 +270,11 @@ size_t ProgressivePhotonBeams::shade(const Hits &hits) {
     hits.expect(active_.size(), "ppb shade");
     uint64_t lookups = 0, pairs = 0;
     shadow_.open(hits.count);
+    if (pilot_) {
+        pilot_slots_.assign(2 * hits.count, kNoRecord);
+        pilot_slot_free_path_.assign(hits.count, kNoRecord);
+        pilot_slot_medium_.assign(hits.count, -1);
+    }
 #pragma omp parallel for schedule(dynamic, 64) num_threads(threads_) reduction(+ : lookups, pairs)
     for (int64_t k = 0; k < int64_t(hits.count); ++k) {
         const int64_t index = active_[k];
@@ -119,14 +286,27 @@ size_t ProgressivePhotonBeams::shade(const Hits &hits) {
         if (p.medium >= 0) {
             MediumStats local;
             const Medium &m = scene.media[p.medium];
+            const BoundaryPlane exit = tri >= 0 ? boundary_plane(scene.triangles[size_t(tri)].n, p.dir) : BoundaryPlane{};
+            // The beams of [0, t_end), or (pilot) the distance to the k-th nearest.
+            auto gather_or_measure = [&](double t_end, const BoundaryPlane &end_plane) {
+                if (!pilot_) {
+                    p.radiance += p.throughput * gather(p, t_end, end_plane, local, pairs);
+                    return;
+                }
+                pilot_slots_[2 * size_t(k)] = pilot_beams(p, t_end, p.rng.fork(), pilot_slot_free_path_[size_t(k)]);
+                pilot_slot_medium_[size_t(k)] = p.medium;
+            };
             if (!p.gathering) {
                 // After a diffuse surface: path tracing, medium scattering included (as pt).
                 bool scattered = steps_.fly_through_medium(p, shadow_[k], index, t_hit, local);
                 lookups += local.density_lookups;
-                if (scattered) continue;
+                if (scattered) {
+                    p.start_triangle = -1;
+                    continue;
+                }
             } else if (m.type == MediumType::Homogeneous) {
                 // Gather beams along the whole segment, then carry the transmittance to the surface.
-                p.radiance += p.throughput * gather(p, t_hit + p.lead, local, pairs);
+                gather_or_measure(t_hit + p.lead, exit);
                 p.throughput *= beer_lambert(m.sigma_t, t_hit + p.lead);
             } else {
                 // Short query ray: a delta-tracked distance bounds the gather, and a
@@ -134,7 +314,7 @@ size_t ProgressivePhotonBeams::shade(const Hits &hits) {
                 FreeFlight ff = sample_free_flight(m, segment_origin(p), p.dir, t_hit + p.lead, p.rng, local,
                                                    p.spectral);  // a grid: gray, the ratios stay
                 double t_end = ff.scattered ? ff.t : t_hit + p.lead;
-                p.radiance += p.throughput * gather(p, t_end, local, pairs);
+                gather_or_measure(t_end, ff.scattered ? BoundaryPlane{} : exit);
                 if (ff.scattered) p.alive = false;
             }
             lookups += p.gathering ? local.density_lookups : 0;
@@ -145,6 +325,18 @@ size_t ProgressivePhotonBeams::shade(const Hits &hits) {
         }
         Vec3 x;
         if (steps_.reach_surface(p, tri, hits.u[k], hits.v[k], x)) scatter_on_surface(p, k, tri, x);
+        p.start_triangle = tri;  // the next ray leaves this surface (null boundary or scattering)
+    }
+    if (pilot_) {
+        // In hit order: the same records whatever the thread count.
+        for (size_t k = 0; k < hits.count; ++k) {
+            if (pilot_slots_[2 * k] != kNoRecord) {
+                auto &result = pilot_results_[size_t(pilot_slot_medium_[k]) + 1];
+                result.distances.push_back(pilot_slots_[2 * k]);
+                result.free_paths.push_back(pilot_slot_free_path_[k]);
+            }
+            if (pilot_slots_[2 * k + 1] != kNoRecord) pilot_results_[0].distances.push_back(pilot_slots_[2 * k + 1]);
+        }
     }
     stats_.beam_pairs += pairs;
     stats_.density_lookups += lookups;
@@ -170,8 +362,12 @@ void ProgressivePhotonBeams::scatter_on_surface(BeamGatherPath &p, size_t slot, 
     const int64_t index = int64_t(&p - paths_.data());
     if (surface_photons_ && !mat.is_delta()) {
         // The path ends here: direct light by NEE (full weight), the rest by photons.
-        steps_.next_event_on_surface(p, shadow, index, tri, x, /*mis=*/false);
-        p.radiance += p.throughput * gather_photons(p, tri, x);
+        if (pilot_) {
+            pilot_slots_[2 * slot + 1] = pilot_photons(p, tri, x);
+        } else {
+            steps_.next_event_on_surface(p, shadow, index, tri, x, /*mis=*/false);
+            p.radiance += p.throughput * gather_photons(p, tri, x);
+        }
         p.alive = false;
         return;
     }
@@ -179,7 +375,7 @@ void ProgressivePhotonBeams::scatter_on_surface(BeamGatherPath &p, size_t slot, 
         // Next-event estimation as pt. Past the last gathering bounce the path
         // scatters in media itself.
         p.gathering = ++p.diffuse_bounces <= gather_diffuse_bounces_;
-        steps_.next_event_on_surface(p, shadow, index, tri, x);
+        if (!pilot_) steps_.next_event_on_surface(p, shadow, index, tri, x);
     }
     steps_.continue_by_bsdf(p, tri, x);
 }
@@ -193,7 +389,7 @@ void ProgressivePhotonBeams::resolve_shadows(const Hits &hits) {
 size_t ProgressivePhotonBeams::next_rays(const RayBuffers &out) { return write_alive_rays(active_, paths_, out, threads_); }
 
 void ProgressivePhotonBeams::end() {
-    add_paths_to_film(film_, paths_, spp_per_iteration_);
+    if (!pilot_) add_paths_to_film(film_, paths_, spp_per_iteration_);  // a pilot estimates nothing
     active_.clear();
     stats_.density_lookups += medium_stats_.density_lookups;
     medium_stats_ = MediumStats();

@@ -15,7 +15,10 @@
 //   L += T_cam(t) sigma_s(x) phase(theta) * power * T_beam(s) / P_beam(s)
 //        * 1/(2r) / sin(theta) / N_light_paths                      (BB1D)
 // where x is the closest point on the camera segment, s the distance along the
-// beam, T/P the short-beam weight (subpaths.h), r this iteration's radius.
+// beam, T/P the short-beam weight (subpaths.h), r this iteration's radius for the beam's
+// medium (each medium has a schedule of its own). Near the surfaces a camera segment starts
+// and ends on, the blur lies parallel to them instead of along the common perpendicular
+// (boundary_kernels.h), so that it no longer reaches past them, where there are no beams.
 // Camera transmittance: closed form in homogeneous media; in density grids a
 // distance is sampled by delta tracking and only beams before it are gathered
 // (the camera ray is a short query ray; weight 1 for gray extinction).
@@ -38,11 +41,16 @@
 // twice. A small k keeps the expensive beam queries to a few segments per
 // pixel sample. Depth (Mitsuba's max_depth, DepthLimit): a beam gathered after s surface
 // events on the camera side makes a path of beam.depth + 1 + s events.
+// The pilot pass (set_pilot), run once before the first iteration with light paths of its
+// own, estimates nothing: each camera segment that would gather beams records the distance
+// within which its k nearest beams lie (BeamBvh::kth_nearest), and each surface-photon
+// estimate that of its k nearest photons; methods/ppb.py derives the default radii from them.
 #pragma once
 
 #include <memory>
 
 #include "beams.h"
+#include "boundary_kernels.h"
 #include "subpaths.h"
 #include "photon_map.h"
 #include "surface_photons.h"
@@ -55,7 +63,17 @@ namespace pgi {
 // (gather_diffuse_bounces + 1)-th diffuse bounce, and is path traced after it.
 struct BeamGatherPath : CameraPath {
     int diffuse_bounces = 0;
+    int start_triangle = -1;  // the surface the current ray left (-1: the camera, a medium vertex)
     bool gathering = true;  // media are still estimated by beams (diffuse_bounces <= limit)
+};
+
+// What a pilot pass measures for one kernel (surface photons, or one medium's beams): the
+// distance within which each query's k nearest lie (kInf: fewer than k within the search
+// bound), and the bounding-sphere radius of what the kernel could gather (0: nothing).
+struct BeamPilotResult {
+    std::vector<double> distances;
+    std::vector<double> free_paths;  // of the segment queries: 1 / sigma_t where their flights ended
+    double extent = 0;
 };
 
 // Counts of one run (all iterations).
@@ -68,8 +86,9 @@ struct BeamStats {
 
 class ProgressivePhotonBeams : public SingleLane<ProgressivePhotonBeams> {
 public:
-    // radius: r_1 of the schedule r_i = r_1 i^(alpha - 1) (Knaus & Zwicker 2011, d = 1);
-    // max_piece_length: the longest piece of a beam in the BVH (beams.h).
+    // radius: r_1 of the schedule r_i = r_1 i^(alpha - 1) (Knaus & Zwicker 2011, d = 1), every
+    // medium's until set_beam_radius; max_piece_length: the longest piece of a beam in the BVH
+    // (beams.h).
     ProgressivePhotonBeams(std::shared_ptr<const Scene> scene, std::shared_ptr<const LightPaths> light_paths,
                            int max_depth, int rr_depth, uint64_t seed, int spp_per_iteration, int threads,
                            size_t max_beams, double radius, double alpha, double max_piece_length,
@@ -77,17 +96,28 @@ public:
     // Surface photons at the first diffuse surface (radius r_1 of a d = 2 schedule);
     // off (radius 0) leaves surfaces to path tracing.
     void set_surface_photons(double radius, double alpha);
+    // r_1 of one medium's beam schedule.
+    void set_beam_radius(int medium, double radius);
+    // Turns this kernel into a pilot (above), or back (both k 0): the queries of the camera paths
+    // whose index is a multiple of path_stride look for their k nearest beams (photons), no
+    // farther than extent_fraction of the bounding radius of what their kernel could gather.
+    // After a pass, pilot_result(-1) holds the surface photons', pilot_result(m) medium m's.
+    void set_pilot(size_t surface_neighbours, size_t beam_neighbours, double extent_fraction, int64_t path_stride);
+    bool pilot() const { return pilot_; }
+    const BeamPilotResult &pilot_result(int kernel) const;
 
     size_t capacity() const { return paths_.size(); }
     size_t shadow_slots() const { return shadow_.opened(); }
     // Pass 1: the beams (and surface photons) of this iteration's light paths, traced first,
     // with the iteration's radii; camera paths started.
     void begin(int64_t iteration);
-    double radius(int64_t iteration) const { return schedule_.radius(iteration); }
-    // The radius schedule of each blur: the beams' (1D), then the surface photons' (2D) if any.
+    double radius(int64_t iteration, int medium = 0) const { return beam_schedule(medium).radius(iteration); }
+    const RadiusSchedule &beam_schedule(int medium) const;
+    // The radius schedule of each blur: the beams' (1D; one alpha for every medium), then the
+    // surface photons' (2D) if any.
     std::vector<RadiusSchedule> schedules() const {
-        if (surface_photons_) return {schedule_, surface_schedule_};
-        return {schedule_};
+        if (surface_photons_) return {schedules_[0], surface_schedule_};
+        return {schedules_[0]};
     }
     double surface_radius(int64_t iteration) const {
         return surface_photons_ ? surface_schedule_.radius(iteration) : 0.0;
@@ -109,7 +139,10 @@ public:
     uint64_t density_lookups() const { return stats_.density_lookups; }
 
 private:
-    RGB gather(BeamGatherPath &p, double t_end, MediumStats &local, uint64_t &pairs) const;
+    RGB gather(BeamGatherPath &p, double t_end, const BoundaryPlane &exit, MediumStats &local, uint64_t &pairs) const;
+    BoundaryPlane entry_plane(const BeamGatherPath &p) const;
+    double pilot_beams(const BeamGatherPath &p, double t_end, Sampler rng, double &free_path) const;
+    double pilot_photons(const BeamGatherPath &p, int tri, const Vec3 &x) const;
     void scatter_on_surface(BeamGatherPath &p, size_t slot, int tri, const Vec3 &x);
     RGB gather_photons(const BeamGatherPath &p, int tri, const Vec3 &x) const;
 
@@ -126,13 +159,26 @@ private:
     ShadowQueue shadow_;
     Film film_;
     BeamBvh bvh_;
-    RadiusSchedule schedule_;
+    std::vector<RadiusSchedule> schedules_;  // of the beams, by medium
     bool surface_photons_ = false;
     RadiusSchedule surface_schedule_;
     std::vector<PathVertex> photons_;  // surface vertices after at least one scattering
     PointTree photon_tree_;
     double photon_radius_ = 0, photon_scale_ = 0;  // r and 1 / (pi r^2 N_light_paths)
-    double beam_scale_ = 0;  // 1 / (2 r N_light_paths)
+    std::vector<double> beam_radii_, beam_scales_;  // this iteration's r and 1 / (2 r N_light_paths), by medium
+    // The pilot: neighbours sought, search bounds by kernel ([0]: surface photons, [1 + m]:
+    // medium m), its sampled paths, its results, and per hit of a shade pass the records of
+    // its segment and its surface (kNoRecord: none).
+    bool pilot_ = false;
+    size_t pilot_surface_k_ = 0, pilot_beam_k_ = 0;
+    double pilot_extent_fraction_ = 0;
+    int64_t pilot_stride_ = 1;
+    std::vector<double> pilot_max_radius_;
+    std::vector<BeamPilotResult> pilot_results_;
+    static constexpr double kNoRecord = -1;
+    std::vector<double> pilot_slots_;
+    std::vector<double> pilot_slot_free_path_;  // the mean free path where its flight ended
+    std::vector<int> pilot_slot_medium_;
     BeamStats stats_;
     MediumStats medium_stats_;
 };

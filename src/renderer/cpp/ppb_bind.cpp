@@ -65,6 +65,20 @@ static void bind_ppb(nb::module_ &m) {
                                        to_numpy(std::move(tb), {k}), to_numpy(std::move(tr), {k}),
                                        to_numpy(std::move(dist), {k}), to_numpy(std::move(sine), {k}));
              }, "origins"_a, "directions"_a, "tmax"_a)
+        // For each ray: the distance within which its k nearest beams lie (inf: fewer within
+        // max_radius); needs a tree built with radius 0.
+        .def("kth_nearest",
+             [](const BeamBvh &bvh, Array<double> origins, Array<double> dirs, Array<double> tmax, size_t k,
+                double max_radius) {
+                 size_t n = tmax.shape(0);
+                 std::vector<double> out(n);
+                 for (size_t i = 0; i < n; ++i) {
+                     const double *o = origins.data() + 3 * i, *d = dirs.data() + 3 * i;
+                     out[i] = bvh.kth_nearest(Vec3(o[0], o[1], o[2]), normalize(Vec3(d[0], d[1], d[2])),
+                                              tmax.data()[i], k, max_radius, [](int32_t) { return true; });
+                 }
+                 return to_numpy(std::move(out), {n});
+             }, "origins"_a, "directions"_a, "tmax"_a, "k"_a, "max_radius"_a)
         .def_prop_ro("beam_count", [](const BeamBvh &b) { return b.beams().size(); })
         .def_prop_ro("piece_count", &BeamBvh::piece_count)
         .def_prop_ro("node_count", &BeamBvh::node_count)
@@ -76,7 +90,22 @@ static void bind_ppb(nb::module_ &m) {
                       size_t, double, double, double, int>(),
              "scene"_a, "light_paths"_a, "max_depth"_a, "rr_depth"_a, "seed"_a, "spp_per_iteration"_a, "threads"_a,
              "max_beams"_a, "radius"_a, "alpha"_a, "max_piece_length"_a, "gather_diffuse_bounces"_a)
-        .def("radius", &ProgressivePhotonBeams::radius, "iteration"_a)
+        .def("radius", &ProgressivePhotonBeams::radius, "iteration"_a, "medium"_a = 0)
+        .def("set_beam_radius", &ProgressivePhotonBeams::set_beam_radius, "medium"_a, "radius"_a)
+        .def("set_pilot", &ProgressivePhotonBeams::set_pilot, "surface_neighbours"_a, "beam_neighbours"_a,
+             "extent_fraction"_a, "path_stride"_a)
+        .def_prop_ro("pilot", &ProgressivePhotonBeams::pilot)
+        // (distances, extent, free paths) of a pilot pass: kernel -1 the surface photons', m medium m's beams'.
+        .def("pilot_result",
+             [](const ProgressivePhotonBeams &pb, int kernel) {
+                 const BeamPilotResult &r = pb.pilot_result(kernel);
+                 std::vector<double> d = r.distances;
+                 size_t n = d.size();
+                 std::vector<double> f = r.free_paths;
+                 size_t nf = f.size();
+                 return nb::make_tuple(to_numpy(std::move(d), {n}), r.extent, to_numpy(std::move(f), {nf}));
+             },
+             "kernel"_a)
         .def("surface_radius", &ProgressivePhotonBeams::surface_radius, "iteration"_a)
         .def("set_surface_photons", &ProgressivePhotonBeams::set_surface_photons, "radius"_a, "alpha"_a)
         .def_prop_ro("kernels",

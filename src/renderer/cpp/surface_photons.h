@@ -14,6 +14,11 @@ namespace pgi {
 // another surface's.
 constexpr double kPhotonNormalAgreement = 0.5;
 
+// Whether photon ph belongs to the surface of triangle T (the two rules above).
+inline bool surface_photon_counts(const Scene &scene, const Triangle &T, const PathVertex &ph) {
+    return dot(scene.triangles[ph.triangle].n, T.n) >= kPhotonNormalAgreement && dot(ph.wi, T.n) > 0;
+}
+
 // Sum of the powers of the photons within `radius` of x on diffuse triangle `tri`
 // that lie on a surface facing the same way and arrived from its front, times
 // the diffuse BSDF (reflectance / pi); the caller divides by the kernel's area.
@@ -27,9 +32,7 @@ RGB reflected_photon_power(const Scene &scene, const PointTree &tree, const std:
     if (dot(wo, T.n) <= 0) return sum;
     tree.query_sphere(x, radius, [&](size_t i, double) {
         const PathVertex &ph = photons[i];
-        if (dot(scene.triangles[ph.triangle].n, T.n) < kPhotonNormalAgreement) return;
-        if (dot(ph.wi, T.n) <= 0) return;
-        if (!counts(ph)) return;
+        if (!surface_photon_counts(scene, T, ph) || !counts(ph)) return;
         sum += ph.throughput;
     });
     return sum * scene.materials[T.material].reflectance * kInvPi;

@@ -163,12 +163,22 @@ class MethodParams:
         default ``default_relative``. Radii below MIN_RADIUS_FRACTION of the scene find no
         photon (and 1 / (pi r^2) overflows near 1e-150), radii above MAX_RADIUS_FRACTION take
         every photon everywhere. ``zero_allowed``: what a radius of 0 means where it is allowed."""
+        given = self.given_radius(name, scene_radius, zero_allowed)
+        if given is not None:
+            return given
+        return self.number(f"{name}_relative", default_relative) * scene_radius
+
+    def given_radius(self, name: str, scene_radius: float, zero_allowed: str = "") -> float | None:
+        """``radius``'s value in world units if ``{name}_world`` or ``{name}_relative`` is given
+        (checked as there), else None: the method derives the radius itself."""
         world, relative = f"{name}_world", f"{name}_relative"
         if world in self.params and relative in self.params:
             raise PgiError(f"method {self.method}: give {world} or {relative}, not both")
+        if world not in self.params and relative not in self.params:
+            return None
         key, scale = (world, scene_radius) if world in self.params else (relative, 1.0)
         lo, hi = MIN_RADIUS_FRACTION * scale, MAX_RADIUS_FRACTION * scale
-        value = self.number(key, default_relative, lo=0 if zero_allowed else lo, hi=hi)
+        value = self.number(key, 0.0, lo=0 if zero_allowed else lo, hi=hi)
         if zero_allowed and 0 < value < lo:
             self.fail(key, f"0 ({zero_allowed}) or >= {lo:g}")
         return value if key == world else value * scene_radius

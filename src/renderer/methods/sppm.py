@@ -19,15 +19,16 @@ from .pm import PhotonMapping
 from .schedules import expected_mse_slopes
 
 DEFAULT_ALPHA = 2.0 / 3.0
-# sppm starts wider than pm: the radius shrinks with the iterations.
-DEFAULT_INITIAL_RADIUS_RELATIVE = 0.04
 
 
 class StochasticProgressivePhotonMapping(PhotonMapping):
     id = "sppm"
     parameters = PhotonMapping.parameters | {"surface_alpha", "volume_alpha"}
     renamed = {**PhotonMapping.renamed, "alpha": ("surface_alpha",)}
-    default_radius_relative = DEFAULT_INITIAL_RADIUS_RELATIVE
+    # sppm starts wider than pm, since the radius shrinks with the iterations: its derived first
+    # radii hold 4 times pm's photons (twice the radius of a 2D kernel where photons are
+    # dense), and its fallback is 0.04 of the scene's radius
+    neighbours_scale = 4
 
     def read_alphas(self, p: MethodParams) -> tuple[float, float]:
         """Knaus-Zwicker alphas of the surface and volume schedules (volume: the surface's by
@@ -41,8 +42,6 @@ class StochasticProgressivePhotonMapping(PhotonMapping):
         s.update(
             surface_alpha=self.alpha,
             volume_alpha=self.volume_alpha,
-            initial_surface_radius_world=self.radius,
-            initial_volume_radius_world=self.volume_radius,
             consistent=True,
             **expected_mse_slopes([tuple(k) for k in self.camera_paths.kernel.kernels]),
         )
