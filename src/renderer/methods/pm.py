@@ -130,17 +130,8 @@ class PhotonMapping(NativeMethod):
         """The pilot (methods/radii.py) on ``iteration``'s photons: the radii not given, from
         the k nearest photons of the places where the camera paths estimate, set as each
         kernel's first radius."""
+        radii.run_pilot(self, self.surface_neighbours, self.volume_neighbours, iteration)
         kernel = self.camera_paths.kernel
-        kernel.set_pilot(
-            self.surface_neighbours,
-            self.volume_neighbours,
-            radii.EXTENT_FRACTION,
-            radii.pilot_stride(self.scene.film, self.spp_per_iteration),
-        )
-        try:
-            self.camera_paths.run(iteration)
-        finally:
-            kernel.set_pilot(0, 0, radii.EXTENT_FRACTION, 1)
         scale = FALLBACK_RADIUS_RELATIVE * self.neighbours_scale**0.5
         fallback = f"{scale:g} of the scene's radius"
         minimum = 1e-9 * self.native.core.scene_radius

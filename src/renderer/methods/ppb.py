@@ -182,17 +182,8 @@ class ProgressivePhotonBeams(NativeMethod):
         """The pilot (methods/radii.py) on ``iteration``'s light paths: the radii not given, from
         the k nearest beams (surface photons) of the places where the camera paths gather, set
         as each kernel's first."""
+        radii.run_pilot(self, self.surface_neighbours, self.beam_neighbours, iteration)
         kernel = self.camera_paths.kernel
-        kernel.set_pilot(
-            self.surface_neighbours,
-            self.beam_neighbours,
-            radii.EXTENT_FRACTION,
-            radii.pilot_stride(self.scene.film, self.spp_per_iteration),
-        )
-        try:
-            self.camera_paths.run(iteration)
-        finally:
-            kernel.set_pilot(0, 0, radii.EXTENT_FRACTION, 1)
         minimum = 1e-9 * self.native.core.scene_radius
 
         def derive(index: int, neighbours: int, kind: str, what: str) -> radii.DerivedRadius:

@@ -61,6 +61,23 @@ def pilot_stride(film: Film, spp: int) -> int:
     return stride
 
 
+def run_pilot(method, surface_neighbours: int, medium_neighbours: int, iteration: int) -> None:
+    """Run ``method``'s camera paths of ``iteration`` as the pilot: its kernel (pm's photon
+    gathering or ppb's beam gathering) records the k nearest neighbours of each query point, and
+    is set back to gathering alone afterwards, whatever happens."""
+    kernel = method.camera_paths.kernel
+    kernel.set_pilot(
+        surface_neighbours,
+        medium_neighbours,
+        EXTENT_FRACTION,
+        pilot_stride(method.scene.film, method.spp_per_iteration),
+    )
+    try:
+        method.camera_paths.run(iteration)
+    finally:
+        kernel.set_pilot(0, 0, EXTENT_FRACTION, 1)
+
+
 def given(world: float, key: str) -> DerivedRadius:
     return DerivedRadius(world, f"given ({key})")
 
