@@ -191,7 +191,7 @@ class ProgressivePhotonBeams(NativeMethod):
             # which is continuous where the density jumps, and the camera side weighs it by
             # sigma_s at its own point, so a beam from a dense part adds nothing to a camera ray
             # in empty space. Capped at a free path, the cloud's beams got a quarter of the
-            # radius the rule gives them, and 2-3 times the error (docs/methods.md).
+            # radius the rule gives them, and 2-4 times the error at equal time (docs/methods.md).
             distances, extent, _ = kernel.pilot_result(index)
             relative = FALLBACK_BEAM_RADIUS if kind == "beam" else FALLBACK_SURFACE_RADIUS
             return radii.from_pilot(
