@@ -43,6 +43,7 @@ import pytest
 from conftest import load_small
 from parity import Estimate, agreement, iteration_images, losses, ours
 from renderer.errors import PgiError
+from renderer.methods import get_method
 from renderer.methods.ppb import ProgressivePhotonBeams
 from renderer.methods.pt import PathTracing
 from stats import ALPHA, loglog_slope
@@ -289,3 +290,21 @@ def test_sidecar_radii_are_world_units_and_slopes_follow_the_kernels():
         params={"light_paths": 64, "surface_radius_relative": 0, "beam_alpha": 1},
     ).stats()
     assert traced["consistent"] is False and traced["expected_mse_slope"] == 0
+
+
+def test_beams_in_a_density_grid_are_not_capped_at_a_free_path():
+    """pm's derived radius in a grid is at most a mean free path (methods/radii.py: its photons
+    carry sigma_s of where they lie); ppb's beams are not capped so (a beam's length per volume
+    is the fluence, weighed by sigma_s at the camera's point): in the cloud, where the cap was
+    a quarter of what the beams' rule gives, ppb's radius is its own rule's, wider than pm's."""
+    scene = load_small("cloud", 16, 16)
+    radii = {}
+    for method_id in ("pm", "ppb"):
+        method = get_method(method_id)(
+            scene, seed=0, threads=1, params={"light_paths": 8192, "spp_per_iteration": 16}
+        )
+        method.run_iteration(0)
+        radii[method_id] = method.stats()["radii"]["cloud"]
+    assert "mean free path" in radii["pm"]["rule"]
+    assert "free path" not in radii["ppb"]["rule"]
+    assert radii["ppb"]["world"] > 3 * radii["pm"]["world"]

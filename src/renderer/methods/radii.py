@@ -13,9 +13,10 @@ estimate would gather lie, k being ``{name}_neighbours``. Each kernel (the surfa
 medium on its own) takes the median of its queries' distances, so that a typical query gathers
 k photons an iteration, but at most EXTENT_FRACTION of the bounding radius of the photons it
 could gather (a medium's: its own photons'), so that a kernel stays small against the medium
-it estimates, and in a grid medium at most FREE_PATHS mean free paths where the flights ended. The
-radii then depend on the photons around the places the camera sees, not on the scene's
-bounding box: a backdrop 20 times as large leaves the radii in a medium as they were.
+it estimates, and in a grid medium at most FREE_PATHS mean free paths where the flights ended (pm
+and sppm; not ppb's beams). The radii then depend on the photons around the places the camera
+sees, not on the scene's bounding box: a backdrop 20 times as large leaves the radii in a medium
+as they were.
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ EXTENT_FRACTION = 0.1
 # wider than that reaches from a camera ray still in thin or empty parts to the photons of dense
 # ones. Not in homogeneous media: their only edges are their boundaries, which the boundary
 # kernels follow, and a laterally uniform slab needs kernels of many free paths to gather photons.
+# Not ppb's beams either (methods/ppb.py): their estimate weighs them by sigma_s at the camera.
 FREE_PATHS = 1.0
 
 
