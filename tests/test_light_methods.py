@@ -24,11 +24,13 @@ iterations against pt at 64 x 2048 spp, at the radii of the rule's first version
 media hardly changed since (cbox-fog 0.034 -> 0.035; cbox-glass pm 0.043 -> 0.037, ppb 0.014 ->
 0.010); on the others 48 iterations against pt at 32 x 512 spp, whose noise the 2 standard
 errors make part of c): the bound holds for the bias of these radii, whatever they are, and
-grows with them. A radius picked small to hide the bias is what the old tests did; these run at
-the defaults. Each cell's colour is judged as a vector beyond the allowance
-(parity.agreement_beyond). cloud is not checked here: pt needs about 90 CPU seconds for this
-test's reference of it (a dense, white medium), beyond the suite's budget; docs/methods.md
-gives its measured bias.
+grows with them. The scene's cap and the k of today's rule (methods/radii.py) changed the radii
+again (e.g. crepuscular pm 0.20 -> 0.046 at the cap, cbox pm 0.026 -> 0.035, ppb's surface
+photons about 1.4 times as wide); c was kept, the allowance following r: an O(r) bias. A
+radius picked small to hide the bias is what the old tests did; these run at the defaults.
+Each cell's colour is judged as a vector beyond the allowance (parity.agreement_beyond). cloud
+is not checked here: pt needs about 90 CPU seconds for this test's reference of it (a dense,
+white medium), beyond the suite's budget; docs/methods.md gives its measured bias.
 
 Power: each check fails with LOSS (5 %) of the light taken from any one quadrant, or moved
 from one quadrant to the opposite one (a blur that keeps the image mean), beyond the allowance
