@@ -193,8 +193,8 @@ def test_every_parameter_used_is_recorded_with_its_value():
         "light_paths": 100,
         "spp_per_iteration": 1,
         "max_records": 8388608,
-        "surface_radius_neighbours": 16,
-        "volume_radius_neighbours": 20,
+        "surface_radius_neighbours": 32,
+        "volume_radius_neighbours": 32,
     }
     both = get_method("pm")(
         scene, seed=0, threads=1, params={"surface_radius_world": 0.1, "volume_radius_world": 0.2}

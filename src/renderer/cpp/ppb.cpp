@@ -223,13 +223,15 @@ RGB ProgressivePhotonBeams::gather(BeamGatherPath &p, double t_end, const Bounda
         add(b, h.t, h.s, h.jacobian);
     };
     bvh_.query_pieces(origin, p.dir, t_end, [&](const BeamBvh::Piece &piece) {
-        const Beam &b = bvh_.beams()[size_t(piece.beam)];
-        if (b.medium != p.medium || !depth_.allows(b.depth + 1 + p.depth)) return;
         // Lines farther apart than r meet neither kernel: the aligned blur moves the beam by
         // |u| = distance / (m.b) >= distance to meet the ray (and near-parallel pairs, which
-        // closest_approach refuses, are refused by both).
+        // closest_approach refuses, are refused by both). Tested on the piece's own copy of
+        // the line before the beam is read: most pieces fail it, and reading each one's beam
+        // first (a cache miss per piece) made ppb's iterations a quarter slower.
         BeamHit h;
         if (!closest_approach(piece.origin, piece.dir, origin, p.dir, h) || !(h.distance < radius)) return;
+        const Beam &b = bvh_.beams()[size_t(piece.beam)];
+        if (b.medium != p.medium || !depth_.allows(b.depth + 1 + p.depth)) return;
         if (piece.holds(h.t_beam)) {
             bool before_exit = zones.exit_start < t_end ? h.t_ray < zones.exit_start : h.t_ray <= t_end;
             if (h.t_ray >= zones.entry_end && before_exit) add(b, h.t_ray, h.t_beam, h.sin_theta);

@@ -43,11 +43,12 @@ DEFAULT_MAX_BEAMS = 1 << 22
 # Light-path records (vertices plus segments) per iteration, as pm's: beams come from them.
 DEFAULT_MAX_RECORDS = 1 << 23
 # Beams a typical camera segment (up to a free flight) gathers per iteration at the derived
-# first radius, and surface photons a typical surface estimate (methods/radii.py). Chosen so
-# that cbox-fog keeps about the radii it had when they were 0.01 and 0.02 of the scene's
-# radius (docs/methods.md).
+# first radius, and surface photons a typical surface estimate (methods/radii.py). The beams'
+# keep cbox-fog's radius as it was at 0.01 of the scene's radius; 2 surface photons gave cbox
+# 0.028 against the old 0.035 and 40 % more relMSE at equal time, 4 give 0.041
+# (docs/methods.md, "Default radii").
 DEFAULT_BEAM_NEIGHBOURS = 16
-DEFAULT_SURFACE_NEIGHBOURS = 2
+DEFAULT_SURFACE_NEIGHBOURS = 4
 # Where the pilot has nothing to go by, and as the kernels' radii until it has run: fractions
 # of the scene's radius.
 FALLBACK_BEAM_RADIUS = 0.01
@@ -190,13 +191,16 @@ class ProgressivePhotonBeams(NativeMethod):
             # No free-path cap (pm's, in grids): a short beam's length per volume is the fluence,
             # which is continuous where the density jumps, and the camera side weighs it by
             # sigma_s at its own point, so a beam from a dense part adds nothing to a camera ray
-            # in empty space. Capped at a free path, the cloud's beams got a quarter of the
-            # radius the rule gives them, and 2-4 times the error at equal time (docs/methods.md).
+            # in empty space. Capped at a free path, the cloud's beams got half the radius of the
+            # scene's cap, and twice the error at equal time (docs/methods.md).
             distances, extent, _ = kernel.pilot_result(index)
             relative = FALLBACK_BEAM_RADIUS if kind == "beam" else FALLBACK_SURFACE_RADIUS
+            ids = self.native.medium_ids
+            # the scene's cap: beams in grid media only (docs/methods.md)
             return radii.from_pilot(
                 np.asarray(distances), extent, neighbours, what, self.fallback[kind],
                 f"{relative:g} of the scene's radius", minimum,
+                scene_cap=kind == "beam" and radii.is_grid(self.scene, ids, index),
             )  # fmt: skip
 
         derived = {}

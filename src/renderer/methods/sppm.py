@@ -27,7 +27,7 @@ class StochasticProgressivePhotonMapping(PhotonMapping):
     renamed = {**PhotonMapping.renamed, "alpha": ("surface_alpha",)}
     # sppm starts wider than pm, since the radius shrinks with the iterations: its derived first
     # radii hold 4 times pm's photons (twice the radius of a 2D kernel where photons are
-    # dense), and its fallback is 0.04 of the scene's radius
+    # dense), and its fallback and scene's cap are 0.04 of the scene's radius
     neighbours_scale = 4
 
     def read_alphas(self, p: MethodParams) -> tuple[float, float]:
