@@ -32,6 +32,7 @@
 #include <vector>
 
 #include "common.h"
+#include "k_nearest.h"
 
 namespace pgi {
 
@@ -112,6 +113,11 @@ public:
     uint64_t escaped() const { return escaped_; }      // infinite beams dropped, all builds
 
 private:
+    // The pieces of the leaves whose boxes, grown by grow() (asked at each node), the ray
+    // (o, unit d), t in [0, tmax], meets: visit(piece), the left child first (a fixed order).
+    template <typename Grow, typename Visit>
+    void walk_pieces(const Vec3 &o, const Vec3 &d, double tmax, Grow &&grow, Visit &&visit) const;
+
     struct Node {
         float lo[3], hi[3];  // box of the pieces below, grown by the radius, rounded outwards
         int32_t first;   // leaf: first piece; inner: the left child (the right one is first + 1)
@@ -145,8 +151,8 @@ inline bool closest_approach(const Vec3 &o_b, const Vec3 &u, const Vec3 &o_r, co
     return true;
 }
 
-template <typename Visit>
-void BeamBvh::query_pieces(const Vec3 &o, const Vec3 &d, double tmax, Visit &&visit) const {
+template <typename Grow, typename Visit>
+void BeamBvh::walk_pieces(const Vec3 &o, const Vec3 &d, double tmax, Grow &&grow, Visit &&visit) const {
     if (nodes_.empty()) return;
     const Vec3 inv(1 / d.x, 1 / d.y, 1 / d.z);
     int stack[kMaxStack];
@@ -154,7 +160,7 @@ void BeamBvh::query_pieces(const Vec3 &o, const Vec3 &d, double tmax, Visit &&vi
     stack[top++] = 0;
     while (top) {
         const Node &n = nodes_[stack[--top]];
-        if (!ray_meets_box(o, d, inv, n.lo, n.hi, tmax)) continue;
+        if (!ray_meets_box(o, d, inv, n.lo, n.hi, tmax, grow())) continue;
         if (n.count == 0) {
             // Children are pushed so that the left one is visited first: a fixed order.
             stack[top++] = n.first + 1;
@@ -163,6 +169,11 @@ void BeamBvh::query_pieces(const Vec3 &o, const Vec3 &d, double tmax, Visit &&vi
         }
         for (int32_t i = n.first; i < n.first + n.count; ++i) visit(pieces_[i]);
     }
+}
+
+template <typename Visit>
+void BeamBvh::query_pieces(const Vec3 &o, const Vec3 &d, double tmax, Visit &&visit) const {
+    walk_pieces(o, d, tmax, [] { return 0.0; }, visit);
 }
 
 template <typename Visit>
@@ -183,38 +194,15 @@ template <typename Accept>
 double BeamBvh::kth_nearest(const Vec3 &o, const Vec3 &d, double tmax, size_t k, double max_radius,
                             Accept &&accept) const {
     if (nodes_.empty() || k == 0) return kInf;
-    std::vector<double> heap;  // the k smallest distances so far (a max-heap)
-    heap.reserve(k);
-    auto bound = [&] { return heap.size() == k ? heap.front() : max_radius; };
-    const Vec3 inv(1 / d.x, 1 / d.y, 1 / d.z);
-    int stack[kMaxStack];
-    int top = 0;
-    stack[top++] = 0;
-    while (top) {
-        const Node &n = nodes_[stack[--top]];
-        // Boxes of a tree of radius 0, grown by the distance still sought.
-        if (!ray_meets_box(o, d, inv, n.lo, n.hi, tmax, bound())) continue;
-        if (n.count == 0) {
-            stack[top++] = n.first + 1;
-            stack[top++] = n.first;
-            continue;
-        }
-        for (int32_t i = n.first; i < n.first + n.count; ++i) {
-            const Piece &p = pieces_[i];
-            BeamHit h;
-            if (!closest_approach(p.origin, p.dir, o, d, h)) continue;
-            if (!(h.distance < bound()) || h.t_ray < 0 || h.t_ray > tmax || !p.holds(h.t_beam)) continue;
-            if (!accept(p.beam)) continue;
-            if (heap.size() == k) {
-                std::pop_heap(heap.begin(), heap.end());
-                heap.back() = h.distance;
-            } else {
-                heap.push_back(h.distance);
-            }
-            std::push_heap(heap.begin(), heap.end());
-        }
-    }
-    return heap.size() == k ? heap.front() : kInf;
+    KSmallest kth(k, max_radius);
+    // Boxes of a tree of radius 0, grown by the distance still sought.
+    walk_pieces(o, d, tmax, [&] { return kth.bound(); }, [&](const Piece &p) {
+        BeamHit h;
+        if (!closest_approach(p.origin, p.dir, o, d, h)) return;
+        if (!(h.distance < kth.bound()) || h.t_ray < 0 || h.t_ray > tmax || !p.holds(h.t_beam)) return;
+        if (accept(p.beam)) kth.add(h.distance);
+    });
+    return kth.kth();
 }
 
 }  // namespace pgi

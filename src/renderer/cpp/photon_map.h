@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "common.h"
+#include "k_nearest.h"
 
 namespace pgi {
 
@@ -30,141 +31,65 @@ public:
     // visit(index, distance^2) for every point with |p - c| < r.
     template <typename Visit>
     void query_sphere(const Vec3 &c, double r, Visit &&visit) const {
-        if (nodes_.empty()) return;
-        double r2 = r * r;
-        int stack[kMaxStack];
-        int top = 0;
-        stack[top++] = 0;
-        while (top) {
-            const Node &n = nodes_[stack[--top]];
-            double d2 = 0;
-            for (int a = 0; a < 3; ++a) {
-                double e = std::max({n.lo[a] - c[a], 0.0, c[a] - n.hi[a]});
-                d2 += e * e;
-            }
-            if (d2 >= r2) continue;
-            if (n.left < 0) {
-                for (uint32_t i = n.begin; i < n.end; ++i) {
-                    Vec3 d = points_[i] - c;
-                    double q = dot(d, d);
-                    if (q < r2) visit(order_[i], q);
-                }
-                continue;
-            }
-            stack[top++] = n.left + 1;
-            stack[top++] = n.left;
-        }
+        const double r2 = r * r;
+        walk([&](const Node &n) { return box_distance2(n, c) >= r2; }, kLeftFirst, [&](uint32_t i) {
+            Vec3 d = points_[i] - c;
+            double q = dot(d, d);
+            if (q < r2) visit(order_[i], q);
+        });
     }
 
     // visit(index, t, distance^2) for every point whose projection on the ray
     // (o, unit d) lies in [0, tmax] at distance < r from it.
     template <typename Visit>
     void query_ray(const Vec3 &o, const Vec3 &d, double tmax, double r, Visit &&visit) const {
-        if (nodes_.empty()) return;
-        double r2 = r * r;
-        Vec3 inv(1 / d.x, 1 / d.y, 1 / d.z);
-        int stack[kMaxStack];
-        int top = 0;
-        stack[top++] = 0;
-        while (top) {
-            const Node &n = nodes_[stack[--top]];
-            if (!ray_meets_box(o, d, inv, n.lo, n.hi, tmax, r)) continue;  // the box grown by r
-            if (n.left < 0) {
-                for (uint32_t i = n.begin; i < n.end; ++i) {
-                    Vec3 v = points_[i] - o;
-                    double t = dot(v, d);
-                    if (t < 0 || t > tmax) continue;
-                    double q = dot(v, v) - t * t;
-                    if (q < r2) visit(order_[i], t, std::max(0.0, q));
-                }
-                continue;
-            }
-            stack[top++] = n.left + 1;
-            stack[top++] = n.left;
-        }
+        const double r2 = r * r;
+        const Vec3 inv(1 / d.x, 1 / d.y, 1 / d.z);
+        auto missed = [&](const Node &n) { return !ray_meets_box(o, d, inv, n.lo, n.hi, tmax, r); };  // grown by r
+        walk(missed, kLeftFirst, [&](uint32_t i) {
+            Vec3 v = points_[i] - o;
+            double t = dot(v, d);
+            if (t < 0 || t > tmax) return;
+            double q = dot(v, v) - t * t;
+            if (q < r2) visit(order_[i], t, std::max(0.0, q));
+        });
     }
 
     // The distance from c within which lie the k nearest points that `accept(index)` takes,
     // searching no farther than max_radius: kInf if fewer than k lie within it.
     template <typename Accept>
     double kth_nearest_to_point(const Vec3 &c, size_t k, double max_radius, Accept &&accept) const {
-        KthDistance kth(k, max_radius);
-        if (nodes_.empty() || k == 0) return kth.result();
-        int stack[kMaxStack];
-        int top = 0;
-        stack[top++] = 0;
-        while (top) {
-            const Node &n = nodes_[stack[--top]];
-            if (box_distance2(n, c) >= kth.bound2()) continue;
-            if (n.left < 0) {
-                for (uint32_t i = n.begin; i < n.end; ++i) {
-                    Vec3 d = points_[i] - c;
-                    double q = dot(d, d);
-                    if (q < kth.bound2() && accept(order_[i])) kth.add(q);
-                }
-                continue;
-            }
-            // The nearer child is visited first (pushed last): the bound shrinks sooner.
-            int a = n.left, b = n.left + 1;
-            if (box_distance2(nodes_[a], c) < box_distance2(nodes_[b], c)) std::swap(a, b);
-            stack[top++] = a;
-            stack[top++] = b;
-        }
-        return kth.result();
+        auto beyond = [&](const Node &n, double bound2) { return box_distance2(n, c) >= bound2; };
+        // The nearer child is visited first: the bound shrinks sooner.
+        auto nearer_first = [&](const Node &n) {
+            return box_distance2(nodes_[n.left], c) < box_distance2(nodes_[n.left + 1], c);
+        };
+        auto distance2 = [&](const Vec3 &p) {
+            Vec3 d = p - c;
+            return dot(d, d);
+        };
+        return kth_nearest(k, max_radius, beyond, nearer_first, distance2, accept);
     }
 
     // The same around the segment [o, o + tmax d] (unit d): distances to the segment.
     template <typename Accept>
     double kth_nearest_to_segment(const Vec3 &o, const Vec3 &d, double tmax, size_t k, double max_radius,
                                   Accept &&accept) const {
-        KthDistance kth(k, max_radius);
-        if (nodes_.empty() || k == 0) return kth.result();
-        Vec3 inv(1 / d.x, 1 / d.y, 1 / d.z);
-        int stack[kMaxStack];
-        int top = 0;
-        stack[top++] = 0;
-        while (top) {
-            const Node &n = nodes_[stack[--top]];
-            // A point within the bound of the segment lies in a box the segment meets, grown by it.
-            if (!ray_meets_box(o, d, inv, n.lo, n.hi, tmax, std::sqrt(kth.bound2()))) continue;
-            if (n.left < 0) {
-                for (uint32_t i = n.begin; i < n.end; ++i) {
-                    Vec3 v = points_[i] - o;
-                    double t = std::clamp(dot(v, d), 0.0, tmax);
-                    Vec3 e = v - d * t;
-                    double q = dot(e, e);
-                    if (q < kth.bound2() && accept(order_[i])) kth.add(q);
-                }
-                continue;
-            }
-            stack[top++] = n.left + 1;
-            stack[top++] = n.left;
-        }
-        return kth.result();
+        const Vec3 inv(1 / d.x, 1 / d.y, 1 / d.z);
+        // A point within the bound of the segment lies in a box the segment meets, grown by it.
+        auto beyond = [&](const Node &n, double bound2) {
+            return !ray_meets_box(o, d, inv, n.lo, n.hi, tmax, std::sqrt(bound2));
+        };
+        auto distance2 = [&](const Vec3 &p) {
+            Vec3 v = p - o;
+            double t = std::clamp(dot(v, d), 0.0, tmax);
+            Vec3 e = v - d * t;
+            return dot(e, e);
+        };
+        return kth_nearest(k, max_radius, beyond, kLeftFirst, distance2, accept);
     }
 
 private:
-    // The k smallest squared distances seen so far (a max-heap), within max_radius.
-    class KthDistance {
-    public:
-        KthDistance(size_t k, double max_radius) : k_(k), max2_(max_radius * max_radius) { heap_.reserve(k); }
-        double bound2() const { return heap_.size() == k_ ? heap_.front() : max2_; }
-        void add(double q) {
-            if (heap_.size() == k_) {
-                std::pop_heap(heap_.begin(), heap_.end());
-                heap_.back() = q;
-            } else {
-                heap_.push_back(q);
-            }
-            std::push_heap(heap_.begin(), heap_.end());
-        }
-        double result() const { return heap_.size() == k_ && k_ > 0 ? std::sqrt(heap_.front()) : kInf; }
-
-    private:
-        size_t k_;
-        double max2_;
-        std::vector<double> heap_;
-    };
     struct Node;
     static double box_distance2(const Node &n, const Vec3 &c) {
         double d2 = 0;
@@ -173,6 +98,44 @@ private:
             d2 += e * e;
         }
         return d2;
+    }
+    static constexpr auto kLeftFirst = [](const Node &) { return true; };
+
+    // Depth first from the root over the nodes that skip(node) does not prune, the left child
+    // first where left_first(node): point(i) for each point of the leaves reached (i in tree order).
+    template <typename Skip, typename LeftFirst, typename Point>
+    void walk(Skip &&skip, LeftFirst &&left_first, Point &&point) const {
+        if (nodes_.empty()) return;
+        int stack[kMaxStack];
+        int top = 0;
+        stack[top++] = 0;
+        while (top) {
+            const Node &n = nodes_[stack[--top]];
+            if (skip(n)) continue;
+            if (n.left < 0) {
+                for (uint32_t i = n.begin; i < n.end; ++i) point(i);
+                continue;
+            }
+            int first = n.left, second = n.left + 1;
+            if (!left_first(n)) std::swap(first, second);
+            stack[top++] = second;
+            stack[top++] = first;
+        }
+    }
+
+    // The k-nearest search of both kth_nearest_* queries: a walk that skips the nodes beyond
+    // the squared distance still sought (skip(node, bound2)), keeping the k smallest
+    // distance2(point) of the accepted points; their k-th, or kInf.
+    template <typename Skip, typename LeftFirst, typename Distance2, typename Accept>
+    double kth_nearest(size_t k, double max_radius, Skip &&skip, LeftFirst &&left_first, Distance2 &&distance2,
+                       Accept &&accept) const {
+        if (nodes_.empty() || k == 0) return kInf;
+        KSmallest kth(k, max_radius * max_radius);  // squared distances
+        walk([&](const Node &n) { return skip(n, kth.bound()); }, left_first, [&](uint32_t i) {
+            double q = distance2(points_[i]);
+            if (q < kth.bound() && accept(order_[i])) kth.add(q);
+        });
+        return std::sqrt(kth.kth());
     }
 
     static constexpr int kLeafSize = 8;

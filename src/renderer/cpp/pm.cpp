@@ -72,41 +72,6 @@ const RadiusSchedule &PhotonMapping::volume_schedule(int medium) const {
     return volume_schedules_[size_t(medium)];
 }
 
-void PhotonMapping::set_pilot(size_t surface_neighbours, size_t volume_neighbours, double extent_fraction,
-                              int64_t path_stride) {
-    if (!(extent_fraction > 0)) throw std::invalid_argument("pm pilot: the extent fraction must be positive");
-    pilot_ = surface_neighbours > 0 || volume_neighbours > 0;
-    pilot_surface_k_ = surface_neighbours;
-    pilot_volume_k_ = volume_neighbours;
-    pilot_extent_fraction_ = extent_fraction;
-    pilot_stride_ = std::max<int64_t>(1, path_stride);
-}
-
-const RadiusPilotResult &PhotonMapping::pilot_result(int kernel) const {
-    if (kernel < -1 || kernel + 1 >= int(pilot_results_.size()))
-        throw std::out_of_range("pm: no pilot result for that kernel");
-    return pilot_results_[size_t(kernel + 1)];
-}
-
-namespace {
-
-// Half the diagonal of the box around `points` (0: none).
-template <typename Points>
-double bounding_radius(const Points &points) {
-    Vec3 lo(kInf), hi(-kInf);
-    bool any = false;
-    for (const Vec3 &p : points) {
-        for (int a = 0; a < 3; ++a) {
-            lo[a] = std::min(lo[a], p[a]);
-            hi[a] = std::max(hi[a], p[a]);
-        }
-        any = true;
-    }
-    return any ? 0.5 * length(hi - lo) : 0.0;
-}
-
-}  // namespace
-
 void PhotonMapping::begin(int64_t iteration) {
     const LightPaths &paths = *light_paths_;
     if (paths.iteration() != iteration)
@@ -130,26 +95,17 @@ void PhotonMapping::begin(int64_t iteration) {
         photons_iteration_ = iteration;
     }
     active_.clear();
-    if (pilot_) {
+    if (pilot_.on()) {
         // The pilot: the photons each kernel could gather, and a regular sample of the paths.
-        pilot_results_.assign(volume_schedules_.size() + 1, RadiusPilotResult{});
-        pilot_max_radius_.assign(pilot_results_.size(), 0.0);
-        std::vector<std::vector<Vec3>> by_kernel(pilot_results_.size());
-        for (const PathVertex &v : surface_photons_) by_kernel[0].push_back(v.pos);
+        std::vector<BoundingBox> boxes(volume_schedules_.size() + 1);
+        for (const PathVertex &v : surface_photons_) boxes[0].add(v.pos);
         for (const PathVertex &v : volume_photons_)
-            if (v.medium >= 0 && size_t(v.medium) + 1 < by_kernel.size()) by_kernel[size_t(v.medium) + 1].push_back(v.pos);
-        for (size_t k = 0; k < pilot_results_.size(); ++k) {
-            pilot_results_[k].extent = bounding_radius(by_kernel[k]);
-            pilot_max_radius_[k] = pilot_extent_fraction_ * pilot_results_[k].extent;
-        }
+            if (v.medium >= 0 && size_t(v.medium) + 1 < boxes.size()) boxes[size_t(v.medium) + 1].add(v.pos);
+        pilot_.begin(boxes);
         if (!depth_.allows(0)) return;
         start_camera_wave(paths_, active_, scene_->camera, iteration, spp_per_iteration_,
                           seed_ ^ stream_tag::kGatherPaths, threads_);
-        std::vector<int32_t> sampled;
-        for (int32_t i : active_)
-            if (i % pilot_stride_ == 0) sampled.push_back(i);
-            else paths_[size_t(i)].alive = false;
-        active_.swap(sampled);
+        pilot_.sample_paths(paths_, active_);
         return;
     }
     stats_.surface_photons += surface_photons_.size();
@@ -216,14 +172,14 @@ RGB PhotonMapping::beam_estimate(const GatherPath &p, double t_hit, const Bounda
 // Pilot: the distance within which the k nearest photons of its medium lie around the segment
 // up to a free flight along it (pilot_flight); none where the flight crosses the segment.
 double PhotonMapping::pilot_segment(const GatherPath &p, double t_hit, Sampler rng, double &free_path) const {
-    if (pilot_volume_k_ == 0) return kNoRecord;
+    if (pilot_.medium_neighbours() == 0) return RadiusPilot::kNoRecord;
     double tmax = std::isfinite(t_hit) ? t_hit + p.lead : 1e30;
     const Vec3 origin = segment_origin(p);
     const PilotFlight flight = pilot_flight(scene_->media[p.medium], origin, p.dir, tmax, rng, p.rng);
-    if (!std::isfinite(flight.t)) return kNoRecord;
+    if (!std::isfinite(flight.t)) return RadiusPilot::kNoRecord;
     free_path = flight.free_path;
     return volume_tree_.kth_nearest_to_segment(
-        origin, p.dir, flight.t, pilot_volume_k_, pilot_max_radius_[size_t(p.medium) + 1], [&](uint32_t i) {
+        origin, p.dir, flight.t, pilot_.medium_neighbours(), pilot_.max_radius(p.medium), [&](uint32_t i) {
             const PathVertex &ph = volume_photons_[i];
             return ph.medium == p.medium && depth_.allows(ph.depth + p.specular);
         });
@@ -233,8 +189,9 @@ double PhotonMapping::pilot_segment(const GatherPath &p, double t_hit, Sampler r
 double PhotonMapping::pilot_surface(const GatherPath &p, int tri, const Vec3 &x) const {
     const Triangle &T = scene_->triangles[size_t(tri)];
     // None at the back of a one-sided surface: no estimate is made there.
-    if (pilot_surface_k_ == 0 || dot(-p.dir, T.n) <= 0) return kNoRecord;
-    return surface_tree_.kth_nearest_to_point(x, pilot_surface_k_, pilot_max_radius_[0], [&](uint32_t i) {
+    const size_t k = pilot_.surface_neighbours();
+    if (k == 0 || dot(-p.dir, T.n) <= 0) return RadiusPilot::kNoRecord;
+    return surface_tree_.kth_nearest_to_point(x, k, pilot_.max_radius(-1), [&](uint32_t i) {
         const PathVertex &ph = surface_photons_[i];
         return surface_photon_counts(*scene_, T, ph) && depth_.allows(ph.depth + p.specular);
     });
@@ -255,12 +212,8 @@ RGB PhotonMapping::surface_estimate(const GatherPath &p, int tri, const Vec3 &x,
 size_t PhotonMapping::shade(const Hits &hits) {
     const Scene &scene = *scene_;
     hits.expect(active_.size(), "pm shade");
-    const bool pilot = pilot_;
-    if (pilot) {
-        pilot_slots_.assign(2 * hits.count, kNoRecord);
-        pilot_slot_free_path_.assign(hits.count, kNoRecord);
-        pilot_slot_medium_.assign(hits.count, -1);
-    }
+    const bool pilot = pilot_.on();
+    if (pilot) pilot_.open_hits(hits.count);
     const double surface_radius = surface_radius_;
     uint64_t lookups = 0, surface_accepted = 0, volume_accepted = 0;
     const DepthLimit specular_limit = depth_.unlimited() ? DepthLimit(kMaxSpecularBounces) : depth_;
@@ -271,8 +224,9 @@ size_t PhotonMapping::shade(const Hits &hits) {
         int tri = hits.prim[k];
         double t_hit = tri >= 0 ? double(hits.tfar[k]) : kInf;
         if (p.medium >= 0 && pilot) {
-            pilot_slots_[2 * size_t(k)] = pilot_segment(p, t_hit, p.rng.fork(), pilot_slot_free_path_[size_t(k)]);
-            pilot_slot_medium_[size_t(k)] = p.medium;
+            double free_path = RadiusPilot::kNoRecord;
+            const double distance = pilot_segment(p, t_hit, p.rng.fork(), free_path);
+            pilot_.record_segment(size_t(k), p.medium, distance, free_path);
         } else if (p.medium >= 0) {
             MediumStats local;
             const Medium &m = scene.media[p.medium];
@@ -302,7 +256,7 @@ size_t PhotonMapping::shade(const Hits &hits) {
             continue;
         }
         if (!mat.is_delta()) {
-            if (pilot) pilot_slots_[2 * size_t(k) + 1] = pilot_surface(p, tri, x);
+            if (pilot) pilot_.record_surface(size_t(k), pilot_surface(p, tri, x));
             else p.radiance += p.throughput * surface_estimate(p, tri, x, surface_radius, surface_accepted);
             p.alive = false;
             continue;
@@ -315,17 +269,7 @@ size_t PhotonMapping::shade(const Hits &hits) {
         advance_by_bsdf(scene, p, p.throughput, tri, x, /*radiance=*/true);
         p.start_triangle = tri;
     }
-    if (pilot) {
-        // In hit order: the same records whatever the thread count.
-        for (size_t k = 0; k < hits.count; ++k) {
-            if (pilot_slots_[2 * k] != kNoRecord) {
-                auto &result = pilot_results_[size_t(pilot_slot_medium_[k]) + 1];
-                result.distances.push_back(pilot_slots_[2 * k]);
-                result.free_paths.push_back(pilot_slot_free_path_[k]);
-            }
-            if (pilot_slots_[2 * k + 1] != kNoRecord) pilot_results_[0].distances.push_back(pilot_slots_[2 * k + 1]);
-        }
-    }
+    if (pilot) pilot_.close_hits();
     medium_stats_.density_lookups += lookups;
     stats_.surface_lookups += surface_accepted;
     stats_.volume_lookups += volume_accepted;
@@ -338,7 +282,7 @@ size_t PhotonMapping::next_rays(const RayBuffers &out) {
 
 void PhotonMapping::end() {
     active_.clear();
-    if (pilot_) return;  // a pilot estimates nothing
+    if (pilot_.on()) return;  // a pilot estimates nothing
     add_paths_to_film(film_, paths_, spp_per_iteration_);
 }
 

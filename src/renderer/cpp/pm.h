@@ -50,6 +50,7 @@
 #include "radius_schedule.h"
 #include "subpaths.h"
 #include "photon_map.h"
+#include "pilot.h"
 #include "surface_photons.h"
 
 namespace pgi {
@@ -71,15 +72,6 @@ struct GatherPath {
 struct PhotonGatherStats {
     uint64_t surface_photons = 0, volume_photons = 0;
     uint64_t surface_lookups = 0, volume_lookups = 0;  // photons accepted by queries
-};
-
-// What a pilot pass measures for one kernel (the surfaces, or one medium): the distance within
-// which each query's k nearest photons lie (kInf: fewer than k within max_radius), and the
-// bounding-sphere radius of the photons the kernel could gather (0: none).
-struct RadiusPilotResult {
-    std::vector<double> distances;
-    std::vector<double> free_paths;  // of the segment queries: 1 / sigma_t where their flights ended
-    double extent = 0;
 };
 
 class PhotonMapping : public SingleLane<PhotonMapping>, public NoShadowRays {
@@ -108,14 +100,14 @@ public:
     const RadiusSchedule &volume_schedule(int medium) const;
     int medium_count() const { return int(volume_schedules_.size()); }
 
-    // Turns this kernel into a pilot (above), or back (both k 0): queries of the camera paths
-    // whose index is a multiple of path_stride look for their k nearest photons (0: that kind of
-    // query records nothing), no farther than extent_fraction of the bounding radius of the
-    // photons of their kernel. After a pass, pilot_result(-1) holds the surfaces', pilot_result(m)
+    // Turns this kernel into a pilot (above), or back (both k 0): see RadiusPilot::set (pilot.h),
+    // the k nearest photons. After a pass, pilot_result(-1) holds the surfaces', pilot_result(m)
     // medium m's.
-    void set_pilot(size_t surface_neighbours, size_t volume_neighbours, double extent_fraction, int64_t path_stride);
-    bool pilot() const { return pilot_; }
-    const RadiusPilotResult &pilot_result(int kernel) const;
+    void set_pilot(size_t surface_neighbours, size_t volume_neighbours, double extent_fraction, int64_t path_stride) {
+        pilot_.set(surface_neighbours, volume_neighbours, extent_fraction, path_stride);
+    }
+    bool pilot() const { return pilot_.on(); }
+    const PilotResult &pilot_result(int kernel) const { return pilot_.result(kernel); }
     const Film &film() const { return film_; }
     const Scene &scene() const { return *scene_; }
     const PhotonGatherStats &stats() const { return stats_; }
@@ -138,19 +130,7 @@ private:
     std::vector<RadiusSchedule> volume_schedules_;  // by medium
     double surface_radius_ = 0;                     // this iteration's
     std::vector<double> volume_radii_;              // this iteration's, by medium
-    // The pilot: neighbours sought, search bounds (fraction of each kernel's extent, and the
-    // resulting radius by kernel), its sampled paths, its results.
-    bool pilot_ = false;
-    size_t pilot_surface_k_ = 0, pilot_volume_k_ = 0;
-    double pilot_extent_fraction_ = 0;
-    std::vector<double> pilot_max_radius_;  // [0]: surfaces, [1 + m]: medium m
-    int64_t pilot_stride_ = 1;
-    std::vector<RadiusPilotResult> pilot_results_;  // [0]: surfaces, [1 + m]: medium m
-    // Per hit of a shade pass: its segment's distance and its surface's (kNoRecord: none).
-    static constexpr double kNoRecord = -1;
-    std::vector<double> pilot_slots_;
-    std::vector<double> pilot_slot_free_path_;  // the mean free path where its flight ended
-    std::vector<int> pilot_slot_medium_;
+    RadiusPilot pilot_{"pm"};
     std::vector<GatherPath> paths_;
     std::vector<int32_t> active_;
     // This iteration's photons (of the light paths of iteration photons_iteration_).

@@ -1,6 +1,6 @@
 // Bindings of the photon-mapping kernel (pm.h, shared by pm and sppm), the photon
 // kd-tree (photon_map.h, exposed for tests) and the radius schedule.
-#include "bindings.h"
+#include "pilot_bind.h"
 #include "pm.h"
 #include "radius_schedule.h"
 
@@ -67,7 +67,8 @@ static void bind_pm(nb::module_ &m) {
           },
           "alpha"_a, "dimension"_a, "bias_order"_a = 2);
 
-    bind_kernel<PhotonMapping>(m, "PhotonMapping")
+    auto cls = bind_kernel<PhotonMapping>(m, "PhotonMapping");
+    cls
         .def(nb::init<std::shared_ptr<const Scene>, std::shared_ptr<const LightPaths>, int, uint64_t, int, int, double,
                       double, double, double>(),
              "scene"_a, "light_paths"_a, "max_depth"_a, "seed"_a, "spp_per_iteration"_a, "threads"_a,
@@ -80,20 +81,6 @@ static void bind_pm(nb::module_ &m) {
         .def("set_surface_radius", &PhotonMapping::set_surface_radius, "radius"_a)
         .def("set_volume_radius", &PhotonMapping::set_volume_radius, "medium"_a, "radius"_a)
         .def_prop_ro("medium_count", &PhotonMapping::medium_count)
-        .def("set_pilot", &PhotonMapping::set_pilot, "surface_neighbours"_a, "volume_neighbours"_a,
-             "extent_fraction"_a, "path_stride"_a)
-        .def_prop_ro("pilot", &PhotonMapping::pilot)
-        // (distances, extent, free paths) of a pilot pass: kernel -1 the surfaces', m medium m's.
-        .def("pilot_result",
-             [](const PhotonMapping &g, int kernel) {
-                 const RadiusPilotResult &r = g.pilot_result(kernel);
-                 std::vector<double> d = r.distances;
-                 size_t n = d.size();
-                 std::vector<double> f = r.free_paths;
-                 size_t nf = f.size();
-                 return nb::make_tuple(to_numpy(std::move(d), {n}), r.extent, to_numpy(std::move(f), {nf}));
-             },
-             "kernel"_a)
         .def_prop_ro("kernels",
                      [](const PhotonMapping &g) {
                          nb::list out;  // (alpha, dimension) of each blur: surfaces, then media (one alpha)
@@ -105,6 +92,7 @@ static void bind_pm(nb::module_ &m) {
         .def_prop_ro("volume_photons", [](const PhotonMapping &g) { return g.stats().volume_photons; })
         .def_prop_ro("surface_lookups", [](const PhotonMapping &g) { return g.stats().surface_lookups; })
         .def_prop_ro("volume_lookups", [](const PhotonMapping &g) { return g.stats().volume_lookups; });
+    bind_pilot(cls, "volume_neighbours");
 }
 PGI_BINDING("pm", bind_pm);
 

@@ -34,35 +34,9 @@ const RadiusSchedule &ProgressivePhotonBeams::beam_schedule(int medium) const {
 
 void ProgressivePhotonBeams::set_pilot(size_t surface_neighbours, size_t beam_neighbours, double extent_fraction,
                                        int64_t path_stride) {
-    if (!(extent_fraction > 0)) throw std::invalid_argument("ppb pilot: the extent fraction must be positive");
-    pilot_ = surface_neighbours > 0 || beam_neighbours > 0;
-    pilot_surface_k_ = surface_photons_ ? surface_neighbours : 0;
-    pilot_beam_k_ = beam_neighbours;
-    pilot_extent_fraction_ = extent_fraction;
-    pilot_stride_ = std::max<int64_t>(1, path_stride);
+    pilot_.set(surface_neighbours, beam_neighbours, extent_fraction, path_stride);
+    if (!surface_photons_) pilot_.skip_surfaces();
 }
-
-const BeamPilotResult &ProgressivePhotonBeams::pilot_result(int kernel) const {
-    if (kernel < -1 || kernel + 1 >= int(pilot_results_.size()))
-        throw std::out_of_range("ppb: no pilot result for that kernel");
-    return pilot_results_[size_t(kernel + 1)];
-}
-
-namespace {
-
-// Half the diagonal of the box around the points (0: none).
-struct BoundingBox {
-    Vec3 lo{kInf}, hi{-kInf};
-    void add(const Vec3 &p) {
-        for (int a = 0; a < 3; ++a) {
-            lo[a] = std::min(lo[a], p[a]);
-            hi[a] = std::max(hi[a], p[a]);
-        }
-    }
-    double radius() const { return lo.x <= hi.x ? 0.5 * length(hi - lo) : 0.0; }
-};
-
-}  // namespace
 
 void ProgressivePhotonBeams::begin(int64_t iteration) {
     const LightPaths &light = *light_paths_;
@@ -78,7 +52,7 @@ void ProgressivePhotonBeams::begin(int64_t iteration) {
                 points.push_back(v.pos);
             }
         photon_tree_.build(points);
-        if (!pilot_) {
+        if (!pilot_.on()) {
             photon_radius_ = surface_schedule_.radius(iteration);
             photon_scale_ = 1.0 / (kPi * photon_radius_ * photon_radius_ * double(light.paths_per_iteration()));
             stats_.photons += photons_.size();
@@ -104,31 +78,22 @@ void ProgressivePhotonBeams::begin(int64_t iteration) {
     }
     active_.clear();
     shadow_.clear();
-    if (pilot_) {
+    if (pilot_.on()) {
         // The pilot: what each kernel could gather, a tree of radius 0 (kth_nearest grows its
         // boxes), and a regular sample of the paths.
-        pilot_results_.assign(schedules_.size() + 1, BeamPilotResult{});
-        std::vector<BoundingBox> boxes(pilot_results_.size());
+        std::vector<BoundingBox> boxes(schedules_.size() + 1);
         for (const PathVertex &v : photons_) boxes[0].add(v.pos);
         for (const Beam &b : beams)
             if (std::isfinite(b.length) && size_t(b.medium) + 1 < boxes.size()) {
                 boxes[size_t(b.medium) + 1].add(b.origin);
                 boxes[size_t(b.medium) + 1].add(b.origin + b.dir * b.length);
             }
-        pilot_max_radius_.assign(boxes.size(), 0.0);
-        for (size_t k = 0; k < boxes.size(); ++k) {
-            pilot_results_[k].extent = boxes[k].radius();
-            pilot_max_radius_[k] = pilot_extent_fraction_ * pilot_results_[k].extent;
-        }
+        pilot_.begin(boxes);
         bvh_.build(std::move(beams), 0.0, max_piece_length_);
         if (!depth_.allows(0)) return;
         start_camera_wave(paths_, active_, scene_->camera, iteration, spp_per_iteration_,
                           seed_ ^ stream_tag::kBeamGatherPaths, threads_);
-        std::vector<int32_t> sampled;
-        for (int32_t i : active_)
-            if (i % pilot_stride_ == 0) sampled.push_back(i);
-            else paths_[size_t(i)].alive = false;
-        active_.swap(sampled);
+        pilot_.sample_paths(paths_, active_);
         return;
     }
     beam_radii_.resize(schedules_.size());
@@ -245,12 +210,12 @@ RGB ProgressivePhotonBeams::gather(BeamGatherPath &p, double t_end, const Bounda
 // Pilot: the distance within which the k nearest beams lie around the segment up to a free
 // flight along it (pilot_flight); none where the flight crosses the segment.
 double ProgressivePhotonBeams::pilot_beams(const BeamGatherPath &p, double t_end, Sampler rng, double &free_path) const {
-    if (pilot_beam_k_ == 0 || !depth_.allows(1 + p.depth)) return kNoRecord;
+    if (pilot_.medium_neighbours() == 0 || !depth_.allows(1 + p.depth)) return RadiusPilot::kNoRecord;
     const Vec3 origin = segment_origin(p);
     const PilotFlight flight = pilot_flight(scene_->media[p.medium], origin, p.dir, t_end, rng, p.rng);
-    if (!std::isfinite(flight.t)) return kNoRecord;
+    if (!std::isfinite(flight.t)) return RadiusPilot::kNoRecord;
     free_path = flight.free_path;
-    return bvh_.kth_nearest(origin, p.dir, flight.t, pilot_beam_k_, pilot_max_radius_[size_t(p.medium) + 1],
+    return bvh_.kth_nearest(origin, p.dir, flight.t, pilot_.medium_neighbours(), pilot_.max_radius(p.medium),
                             [&](int32_t index) {
                                 const Beam &b = bvh_.beams()[size_t(index)];
                                 return b.medium == p.medium && depth_.allows(b.depth + 1 + p.depth);
@@ -260,8 +225,9 @@ double ProgressivePhotonBeams::pilot_beams(const BeamGatherPath &p, double t_end
 // Pilot: the distance within which the k nearest surface photons of x's estimate lie.
 double ProgressivePhotonBeams::pilot_photons(const BeamGatherPath &p, int tri, const Vec3 &x) const {
     const Triangle &T = scene_->triangles[size_t(tri)];
-    if (pilot_surface_k_ == 0 || dot(-p.dir, T.n) <= 0) return kNoRecord;
-    return photon_tree_.kth_nearest_to_point(x, pilot_surface_k_, pilot_max_radius_[0], [&](uint32_t i) {
+    const size_t k = pilot_.surface_neighbours();
+    if (k == 0 || dot(-p.dir, T.n) <= 0) return RadiusPilot::kNoRecord;
+    return photon_tree_.kth_nearest_to_point(x, k, pilot_.max_radius(-1), [&](uint32_t i) {
         const PathVertex &v = photons_[i];
         return surface_photon_counts(*scene_, T, v) && depth_.allows(v.depth + p.depth - 1);
     });
@@ -272,11 +238,8 @@ size_t ProgressivePhotonBeams::shade(const Hits &hits) {
     hits.expect(active_.size(), "ppb shade");
     uint64_t lookups = 0, pairs = 0;
     shadow_.open(hits.count);
-    if (pilot_) {
-        pilot_slots_.assign(2 * hits.count, kNoRecord);
-        pilot_slot_free_path_.assign(hits.count, kNoRecord);
-        pilot_slot_medium_.assign(hits.count, -1);
-    }
+    const bool pilot = pilot_.on();
+    if (pilot) pilot_.open_hits(hits.count);
 #pragma omp parallel for schedule(dynamic, 64) num_threads(threads_) reduction(+ : lookups, pairs)
     for (int64_t k = 0; k < int64_t(hits.count); ++k) {
         const int64_t index = active_[k];
@@ -291,12 +254,13 @@ size_t ProgressivePhotonBeams::shade(const Hits &hits) {
             const BoundaryPlane exit = tri >= 0 ? boundary_plane(scene.triangles[size_t(tri)].n, p.dir) : BoundaryPlane{};
             // The beams of [0, t_end), or (pilot) the distance to the k-th nearest.
             auto gather_or_measure = [&](double t_end, const BoundaryPlane &end_plane) {
-                if (!pilot_) {
+                if (!pilot) {
                     p.radiance += p.throughput * gather(p, t_end, end_plane, local, pairs);
                     return;
                 }
-                pilot_slots_[2 * size_t(k)] = pilot_beams(p, t_end, p.rng.fork(), pilot_slot_free_path_[size_t(k)]);
-                pilot_slot_medium_[size_t(k)] = p.medium;
+                double free_path = RadiusPilot::kNoRecord;
+                const double distance = pilot_beams(p, t_end, p.rng.fork(), free_path);
+                pilot_.record_segment(size_t(k), p.medium, distance, free_path);
             };
             if (!p.gathering) {
                 // After a diffuse surface: path tracing, medium scattering included (as pt).
@@ -329,17 +293,7 @@ size_t ProgressivePhotonBeams::shade(const Hits &hits) {
         if (steps_.reach_surface(p, tri, hits.u[k], hits.v[k], x)) scatter_on_surface(p, k, tri, x);
         p.start_triangle = tri;  // the next ray leaves this surface (null boundary or scattering)
     }
-    if (pilot_) {
-        // In hit order: the same records whatever the thread count.
-        for (size_t k = 0; k < hits.count; ++k) {
-            if (pilot_slots_[2 * k] != kNoRecord) {
-                auto &result = pilot_results_[size_t(pilot_slot_medium_[k]) + 1];
-                result.distances.push_back(pilot_slots_[2 * k]);
-                result.free_paths.push_back(pilot_slot_free_path_[k]);
-            }
-            if (pilot_slots_[2 * k + 1] != kNoRecord) pilot_results_[0].distances.push_back(pilot_slots_[2 * k + 1]);
-        }
-    }
+    if (pilot) pilot_.close_hits();
     stats_.beam_pairs += pairs;
     stats_.density_lookups += lookups;
     return shadow_.live(threads_);
@@ -364,8 +318,8 @@ void ProgressivePhotonBeams::scatter_on_surface(BeamGatherPath &p, size_t slot, 
     const int64_t index = int64_t(&p - paths_.data());
     if (surface_photons_ && !mat.is_delta()) {
         // The path ends here: direct light by NEE (full weight), the rest by photons.
-        if (pilot_) {
-            pilot_slots_[2 * slot + 1] = pilot_photons(p, tri, x);
+        if (pilot_.on()) {
+            pilot_.record_surface(slot, pilot_photons(p, tri, x));
         } else {
             steps_.next_event_on_surface(p, shadow, index, tri, x, /*mis=*/false);
             p.radiance += p.throughput * gather_photons(p, tri, x);
@@ -377,7 +331,7 @@ void ProgressivePhotonBeams::scatter_on_surface(BeamGatherPath &p, size_t slot, 
         // Next-event estimation as pt. Past the last gathering bounce the path
         // scatters in media itself.
         p.gathering = ++p.diffuse_bounces <= gather_diffuse_bounces_;
-        if (!pilot_) steps_.next_event_on_surface(p, shadow, index, tri, x);
+        if (!pilot_.on()) steps_.next_event_on_surface(p, shadow, index, tri, x);
     }
     steps_.continue_by_bsdf(p, tri, x);
 }
@@ -391,7 +345,7 @@ void ProgressivePhotonBeams::resolve_shadows(const Hits &hits) {
 size_t ProgressivePhotonBeams::next_rays(const RayBuffers &out) { return write_alive_rays(active_, paths_, out, threads_); }
 
 void ProgressivePhotonBeams::end() {
-    if (!pilot_) add_paths_to_film(film_, paths_, spp_per_iteration_);  // a pilot estimates nothing
+    if (!pilot_.on()) add_paths_to_film(film_, paths_, spp_per_iteration_);  // a pilot estimates nothing
     active_.clear();
     stats_.density_lookups += medium_stats_.density_lookups;
     medium_stats_ = MediumStats();

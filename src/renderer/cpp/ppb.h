@@ -53,6 +53,7 @@
 #include "boundary_kernels.h"
 #include "subpaths.h"
 #include "photon_map.h"
+#include "pilot.h"
 #include "surface_photons.h"
 #include "radius_schedule.h"
 #include "camera_path.h"
@@ -65,15 +66,6 @@ struct BeamGatherPath : CameraPath {
     int diffuse_bounces = 0;
     int start_triangle = -1;  // the surface the current ray left (-1: the camera, a medium vertex)
     bool gathering = true;  // media are still estimated by beams (diffuse_bounces <= limit)
-};
-
-// What a pilot pass measures for one kernel (surface photons, or one medium's beams): the
-// distance within which each query's k nearest lie (kInf: fewer than k within the search
-// bound), and the bounding-sphere radius of what the kernel could gather (0: nothing).
-struct BeamPilotResult {
-    std::vector<double> distances;
-    std::vector<double> free_paths;  // of the segment queries: 1 / sigma_t where their flights ended
-    double extent = 0;
 };
 
 // Counts of one run (all iterations).
@@ -98,13 +90,12 @@ public:
     void set_surface_photons(double radius, double alpha);
     // r_1 of one medium's beam schedule.
     void set_beam_radius(int medium, double radius);
-    // Turns this kernel into a pilot (above), or back (both k 0): the queries of the camera paths
-    // whose index is a multiple of path_stride look for their k nearest beams (photons), no
-    // farther than extent_fraction of the bounding radius of what their kernel could gather.
-    // After a pass, pilot_result(-1) holds the surface photons', pilot_result(m) medium m's.
+    // Turns this kernel into a pilot (above), or back (both k 0): see RadiusPilot::set (pilot.h),
+    // the k nearest beams (surface photons; none without them). After a pass, pilot_result(-1)
+    // holds the surface photons', pilot_result(m) medium m's.
     void set_pilot(size_t surface_neighbours, size_t beam_neighbours, double extent_fraction, int64_t path_stride);
-    bool pilot() const { return pilot_; }
-    const BeamPilotResult &pilot_result(int kernel) const;
+    bool pilot() const { return pilot_.on(); }
+    const PilotResult &pilot_result(int kernel) const { return pilot_.result(kernel); }
 
     size_t capacity() const { return paths_.size(); }
     size_t shadow_slots() const { return shadow_.opened(); }
@@ -166,19 +157,7 @@ private:
     PointTree photon_tree_;
     double photon_radius_ = 0, photon_scale_ = 0;  // r and 1 / (pi r^2 N_light_paths)
     std::vector<double> beam_radii_, beam_scales_;  // this iteration's r and 1 / (2 r N_light_paths), by medium
-    // The pilot: neighbours sought, search bounds by kernel ([0]: surface photons, [1 + m]:
-    // medium m), its sampled paths, its results, and per hit of a shade pass the records of
-    // its segment and its surface (kNoRecord: none).
-    bool pilot_ = false;
-    size_t pilot_surface_k_ = 0, pilot_beam_k_ = 0;
-    double pilot_extent_fraction_ = 0;
-    int64_t pilot_stride_ = 1;
-    std::vector<double> pilot_max_radius_;
-    std::vector<BeamPilotResult> pilot_results_;
-    static constexpr double kNoRecord = -1;
-    std::vector<double> pilot_slots_;
-    std::vector<double> pilot_slot_free_path_;  // the mean free path where its flight ended
-    std::vector<int> pilot_slot_medium_;
+    RadiusPilot pilot_{"ppb"};
     BeamStats stats_;
     MediumStats medium_stats_;
 };

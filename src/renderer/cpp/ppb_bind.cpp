@@ -1,5 +1,5 @@
 // Bindings of the ppb kernel (ppb.h) and of the beam BVH (beams.h, exposed for tests).
-#include "bindings.h"
+#include "pilot_bind.h"
 #include "ppb.h"
 
 namespace pgi::bind {
@@ -85,27 +85,14 @@ static void bind_ppb(nb::module_ &m) {
         .def_prop_ro("piece_length", &BeamBvh::piece_length)
         .def_prop_ro("truncated", &BeamBvh::truncated);
 
-    bind_kernel<ProgressivePhotonBeams>(m, "ProgressivePhotonBeams")
+    auto cls = bind_kernel<ProgressivePhotonBeams>(m, "ProgressivePhotonBeams");
+    cls
         .def(nb::init<std::shared_ptr<const Scene>, std::shared_ptr<const LightPaths>, int, int, uint64_t, int, int,
                       size_t, double, double, double, int>(),
              "scene"_a, "light_paths"_a, "max_depth"_a, "rr_depth"_a, "seed"_a, "spp_per_iteration"_a, "threads"_a,
              "max_beams"_a, "radius"_a, "alpha"_a, "max_piece_length"_a, "gather_diffuse_bounces"_a)
         .def("radius", &ProgressivePhotonBeams::radius, "iteration"_a, "medium"_a = 0)
         .def("set_beam_radius", &ProgressivePhotonBeams::set_beam_radius, "medium"_a, "radius"_a)
-        .def("set_pilot", &ProgressivePhotonBeams::set_pilot, "surface_neighbours"_a, "beam_neighbours"_a,
-             "extent_fraction"_a, "path_stride"_a)
-        .def_prop_ro("pilot", &ProgressivePhotonBeams::pilot)
-        // (distances, extent, free paths) of a pilot pass: kernel -1 the surface photons', m medium m's beams'.
-        .def("pilot_result",
-             [](const ProgressivePhotonBeams &pb, int kernel) {
-                 const BeamPilotResult &r = pb.pilot_result(kernel);
-                 std::vector<double> d = r.distances;
-                 size_t n = d.size();
-                 std::vector<double> f = r.free_paths;
-                 size_t nf = f.size();
-                 return nb::make_tuple(to_numpy(std::move(d), {n}), r.extent, to_numpy(std::move(f), {nf}));
-             },
-             "kernel"_a)
         .def("surface_radius", &ProgressivePhotonBeams::surface_radius, "iteration"_a)
         .def("set_surface_photons", &ProgressivePhotonBeams::set_surface_photons, "radius"_a, "alpha"_a)
         .def_prop_ro("kernels",
@@ -120,6 +107,7 @@ static void bind_ppb(nb::module_ &m) {
         .def_prop_ro("beams_escaped", [](const ProgressivePhotonBeams &pb) { return pb.bvh().escaped(); })
         .def_prop_ro("beam_pairs", [](const ProgressivePhotonBeams &pb) { return pb.stats().beam_pairs; })
         .def_prop_ro("pieces", [](const ProgressivePhotonBeams &pb) { return pb.bvh().piece_count(); });
+    bind_pilot(cls, "beam_neighbours");
 }
 PGI_BINDING("ppb", bind_ppb);
 

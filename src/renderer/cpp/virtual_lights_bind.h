@@ -1,5 +1,6 @@
-// What the bindings of the virtual-light kernels share (vpl_bind.cpp, vsl_bind.cpp): records
-// made from probe arguments, and the counts every gathering kernel reports.
+// What the bindings of the virtual-light kernels share (vpl_bind.cpp, vsl_bind.cpp,
+// vrl_bind.cpp): records made from probe arguments, the counts every gathering kernel reports,
+// and the clamp of the kernels whose point lights transfer as vpl's.
 #pragma once
 
 #include "bindings.h"
@@ -52,6 +53,18 @@ nb::class_<K> &bind_gathering(nb::class_<K> &cls) {
         .def_prop_ro("gather_jobs", [](const K &k) { return k.stats().jobs; })
         .def_prop_ro("pairs", [](const K &k) { return k.stats().pairs; })
         .def_prop_ro("shadow_rays_aimed", &K::shadow_rays_aimed);
+}
+
+// The clamp of a kernel whose point lights transfer as vpl's (PointTransfer, vpl.h).
+template <typename K>
+nb::class_<K> &bind_clamp(nb::class_<K> &cls) {
+    return cls
+        .def("set_clamp", [](K &k, PointTransfer::Clamp mode, double distance, double alpha) {
+                 k.transfer().set_clamp(mode, distance, alpha);
+             }, "mode"_a, "distance"_a, "alpha"_a,
+             "none; fixed at `distance` (world units); or progressive from it, d_i = d_1 i^(alpha - 1).")
+        .def("clamp_distance", [](const K &k, int64_t iteration) { return k.transfer().distance(iteration); },
+             "iteration"_a, "The clamp's d_i in world units (0: none) of iteration `iteration` (0-based).");
 }
 
 }  // namespace pgi::bind

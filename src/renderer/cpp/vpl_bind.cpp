@@ -85,13 +85,7 @@ static void bind_vpl(nb::module_ &m) {
 
     using K = VirtualPointLights;
     auto cls = bind_kernel<K>(m, "VirtualPointLights");
-    bind_gathering(cls)
-        .def("set_clamp", [](K &k, PointTransfer::Clamp mode, double distance, double alpha) {
-                 k.transfer().set_clamp(mode, distance, alpha);
-             }, "mode"_a, "distance"_a, "alpha"_a,
-             "none; fixed at `distance` (world units); or progressive from it, d_i = d_1 i^(alpha - 1).")
-        .def("clamp_distance", [](const K &k, int64_t iteration) { return k.transfer().distance(iteration); },
-             "iteration"_a, "The clamp's d_i in world units (0: none) of iteration `iteration` (0-based).");
+    bind_clamp(bind_gathering(cls));
 }
 PGI_BINDING("vpl", bind_vpl);
 

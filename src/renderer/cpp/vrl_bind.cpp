@@ -160,13 +160,7 @@ static void bind_vrl(nb::module_ &m) {
 
     using K = VirtualRayLights;
     auto cls = bind_kernel<K>(m, "VirtualRayLights");
-    bind_gathering(cls)
-        .def("set_clamp", [](K &k, PointTransfer::Clamp mode, double distance, double alpha) {
-                 k.transfer().set_clamp(mode, distance, alpha);
-             }, "mode"_a, "distance"_a, "alpha"_a,
-             "The point lights' clamp, as vpl's.")
-        .def("clamp_distance", [](const K &k, int64_t iteration) { return k.transfer().distance(iteration); },
-             "iteration"_a)
+    bind_clamp(bind_gathering(cls))
         .def("set_beam_radius", [](K &k, double initial, double alpha) { k.extra().set_beam_radius(initial, alpha); },
              "initial"_a, "alpha"_a, "Beams (vbl) of radius r_i = r_1 i^(alpha - 1), world units.")
         .def("set_min_depth", &K::set_min_depth, "min_depth"_a,
