@@ -183,6 +183,17 @@ class MethodParams:
             self.fail(key, f"0 ({zero_allowed}) or >= {lo:g}")
         return value if key == world else value * scene_radius
 
+    def given_radius_key(self, name: str) -> str:
+        """Which of ``{name}_world`` and ``{name}_relative`` was given (given_radius checked it)."""
+        return f"{name}_world" if f"{name}_world" in self.params else f"{name}_relative"
+
+    def neighbours(self, name: str, given: float | None, default: int) -> int:
+        """k of a pilot's k nearest for kernel ``name``: ``{name}_neighbours``, or 0 where the
+        radius is ``given`` (then the key is refused: it would have no effect)."""
+        key = f"{name}_neighbours"
+        self.refuse_unused(key, given is None, f"with {name}_world or {name}_relative")
+        return 0 if given is not None else self.integer(key, default, lo=1)
+
     def refuse_unused(self, key: str, used: bool, why: str) -> None:
         """A parameter given where it has no effect is a mistake, not something to ignore."""
         if key in self.params and not used:

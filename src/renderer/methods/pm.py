@@ -73,11 +73,12 @@ class PhotonMapping(NativeMethod):
         # nearest photons: (radius or None, k)
         self.surface_given = p.given_radius("surface_radius", size)
         self.volume_given = p.given_radius("volume_radius", size)
-        self.surface_neighbours = self.read_neighbours(
-            p, "surface_radius", self.surface_given, DEFAULT_SURFACE_NEIGHBOURS
+        scale = self.neighbours_scale
+        self.surface_neighbours = p.neighbours(
+            "surface_radius", self.surface_given, DEFAULT_SURFACE_NEIGHBOURS * scale
         )
-        self.volume_neighbours = self.read_neighbours(
-            p, "volume_radius", self.volume_given, DEFAULT_VOLUME_NEIGHBOURS
+        self.volume_neighbours = p.neighbours(
+            "volume_radius", self.volume_given, DEFAULT_VOLUME_NEIGHBOURS * scale
         )
         self.fallback_radius = FALLBACK_RADIUS_RELATIVE * self.neighbours_scale**0.5 * size
         self.alpha, self.volume_alpha = self.read_alphas(p)
@@ -107,18 +108,9 @@ class PhotonMapping(NativeMethod):
             ("volume_radius", self.volume_given),
         ):
             if value is not None:
-                key = f"{name}_world" if f"{name}_world" in p.params else f"{name}_relative"
-                self.given[name] = radii.given(value, key)
+                self.given[name] = radii.given(value, p.given_radius_key(name))
         if len(self.given) == 2:
             self.radii = self.with_given_radii({})
-
-    def read_neighbours(self, p: MethodParams, name: str, given: float | None, default: int) -> int:
-        """k of the pilot's k nearest photons for kernel ``name`` (0 when the radius is given)."""
-        key = f"{name}_neighbours"
-        p.refuse_unused(key, given is None, f"with {name}_world or {name}_relative")
-        if given is not None:
-            return 0
-        return p.integer(key, default * self.neighbours_scale, lo=1)
 
     def with_given_radii(self, derived: dict) -> dict[str, radii.DerivedRadius]:
         """Every kernel's radius: the given ones, else those in ``derived``."""

@@ -109,13 +109,11 @@ class ProgressivePhotonBeams(NativeMethod):
         # 0: path-traced surfaces
         surface_given = p.given_radius("surface_radius", size, zero_allowed="path-traced surfaces")
         surface_photons = surface_given != 0
-        self.beam_neighbours = self.read_neighbours(
-            p, "beam_radius", beam_given, DEFAULT_BEAM_NEIGHBOURS
-        )
+        self.beam_neighbours = p.neighbours("beam_radius", beam_given, DEFAULT_BEAM_NEIGHBOURS)
         self.surface_neighbours = 0
         if surface_photons:
-            self.surface_neighbours = self.read_neighbours(
-                p, "surface_radius", surface_given, DEFAULT_SURFACE_NEIGHBOURS
+            self.surface_neighbours = p.neighbours(
+                "surface_radius", surface_given, DEFAULT_SURFACE_NEIGHBOURS
             )
         else:
             p.refuse_unused("surface_radius_neighbours", False, "with path-traced surfaces")
@@ -158,17 +156,10 @@ class ProgressivePhotonBeams(NativeMethod):
         self.given: dict[str, radii.DerivedRadius] = {}
         for name, value in (("beam_radius", beam_given), ("surface_radius", surface_given)):
             if value is not None and value > 0:
-                key = f"{name}_world" if f"{name}_world" in p.params else f"{name}_relative"
-                self.given[name] = radii.given(value, key)
+                self.given[name] = radii.given(value, p.given_radius_key(name))
         self.radii: dict[str, radii.DerivedRadius] | None = None
         if not self.beam_neighbours and not self.surface_neighbours:
             self.radii = self.with_given_radii({})
-
-    def read_neighbours(self, p: MethodParams, name: str, given: float | None, default: int) -> int:
-        """k of the pilot's k nearest for kernel ``name`` (0 when the radius is given)."""
-        key = f"{name}_neighbours"
-        p.refuse_unused(key, given is None, f"with {name}_world or {name}_relative")
-        return 0 if given is not None else p.integer(key, default, lo=1)
 
     def with_given_radii(self, derived: dict) -> dict[str, radii.DerivedRadius]:
         """Every kernel's first radius: the given ones, else those in ``derived``."""
