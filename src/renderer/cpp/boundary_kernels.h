@@ -36,6 +36,7 @@
 #include <cmath>
 
 #include "common.h"
+#include "scene.h"
 
 namespace pgi {
 
@@ -66,6 +67,12 @@ inline BoundaryPlane boundary_plane(const Vec3 &normal, const Vec3 &d) {
     b.cosine = std::abs(dot(d, normal));
     b.present = b.cosine >= kMinAlignedCosine;
     return b;
+}
+
+// The plane of triangle `tri` (a segment's start or end), none for -1 (the camera, or no hit).
+inline BoundaryPlane triangle_plane(const Scene &scene, int tri, const Vec3 &d) {
+    if (tri < 0) return {};
+    return boundary_plane(scene.triangles[size_t(tri)].n, d);
 }
 
 // Zones of the segment (unit d, length tmax, which may be infinite) for kernels of radius r,

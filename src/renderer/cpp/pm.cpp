@@ -120,12 +120,6 @@ void PhotonMapping::begin(int64_t iteration) {
                       seed_ ^ stream_tag::kGatherPaths, threads_);
 }
 
-// The plane of the surface the path's current ray left, if any (boundary_kernels.h).
-BoundaryPlane PhotonMapping::entry_plane(const GatherPath &p) const {
-    if (p.start_triangle < 0) return {};
-    return boundary_plane(scene_->triangles[size_t(p.start_triangle)].n, p.dir);
-}
-
 // Beam radiance estimate along [0, t_hit] (Jarosz et al. 2008): every volume photon
 // of this medium whose disc crosses the segment, attenuated to the camera-path vertex.
 // Near the planes the segment starts and ends on, the discs lie parallel to them
@@ -136,7 +130,7 @@ RGB PhotonMapping::beam_estimate(const GatherPath &p, double t_hit, const Bounda
     double tmax = std::isfinite(t_hit) ? t_hit + p.lead : 1e30;
     const Vec3 origin = segment_origin(p);
     TransmittanceTrack track(m, origin, p.dir, tmax, rng, ms);
-    const KernelZones zones = kernel_zones(p.dir, tmax, radius, entry_plane(p), exit);
+    const KernelZones zones = kernel_zones(p.dir, tmax, radius, triangle_plane(*scene_, p.start_triangle, p.dir), exit);
     const double r2 = radius * radius;
     RGB sum(0.0);
     const double kernel = 1 / (kPi * radius * radius);
@@ -187,14 +181,11 @@ double PhotonMapping::pilot_segment(const GatherPath &p, double t_hit, Sampler r
 
 // Pilot: the distance within which the k nearest photons that x's estimate would take lie.
 double PhotonMapping::pilot_surface(const GatherPath &p, int tri, const Vec3 &x) const {
-    const Triangle &T = scene_->triangles[size_t(tri)];
-    // None at the back of a one-sided surface: no estimate is made there.
     const size_t k = pilot_.surface_neighbours();
-    if (k == 0 || dot(-p.dir, T.n) <= 0) return RadiusPilot::kNoRecord;
-    return surface_tree_.kth_nearest_to_point(x, k, pilot_.max_radius(-1), [&](uint32_t i) {
-        const PathVertex &ph = surface_photons_[i];
-        return surface_photon_counts(*scene_, T, ph) && depth_.allows(ph.depth + p.specular);
-    });
+    if (k == 0) return RadiusPilot::kNoRecord;
+    return kth_nearest_surface_photon(*scene_, surface_tree_, surface_photons_, tri, x, -p.dir, k,
+                                      pilot_.max_radius(-1), RadiusPilot::kNoRecord,
+                                      [&](const PathVertex &ph) { return depth_.allows(ph.depth + p.specular); });
 }
 
 // Surface density estimate at x (Jensen 1996) with a constant kernel 1 / (pi r^2).
@@ -230,7 +221,7 @@ size_t PhotonMapping::shade(const Hits &hits) {
         } else if (p.medium >= 0) {
             MediumStats local;
             const Medium &m = scene.media[p.medium];
-            const BoundaryPlane exit = tri >= 0 ? boundary_plane(scene.triangles[size_t(tri)].n, p.dir) : BoundaryPlane{};
+            const BoundaryPlane exit = triangle_plane(scene, tri, p.dir);
             // Each medium segment gets fresh streams: segments split by null surfaces
             // would otherwise share their random numbers and correlate their estimates.
             p.radiance += p.throughput * beam_estimate(p, t_hit, exit, volume_radii_[size_t(p.medium)], p.rng.fork(),

@@ -116,7 +116,6 @@ public:
 private:
     RGB beam_estimate(const GatherPath &p, double t_hit, const BoundaryPlane &exit, double radius, Sampler rng,
                       MediumStats &ms, uint64_t &accepted) const;
-    BoundaryPlane entry_plane(const GatherPath &p) const;
     double pilot_segment(const GatherPath &p, double t_hit, Sampler rng, double &free_path) const;
     double pilot_surface(const GatherPath &p, int tri, const Vec3 &x) const;
     RGB surface_estimate(const GatherPath &p, int tri, const Vec3 &x, double radius, uint64_t &accepted) const;

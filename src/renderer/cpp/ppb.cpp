@@ -111,12 +111,6 @@ void ProgressivePhotonBeams::begin(int64_t iteration) {
                       seed_ ^ stream_tag::kBeamGatherPaths, threads_);
 }
 
-// The plane of the surface the path's current ray left, if any (boundary_kernels.h).
-BoundaryPlane ProgressivePhotonBeams::entry_plane(const BeamGatherPath &p) const {
-    if (p.start_triangle < 0) return {};
-    return boundary_plane(scene_->triangles[size_t(p.start_triangle)].n, p.dir);
-}
-
 namespace {
 
 // Where the ray o + t d meets the beam b translated by u * blur (blur not in the plane of the
@@ -152,7 +146,7 @@ RGB ProgressivePhotonBeams::gather(BeamGatherPath &p, double t_end, const Bounda
     const bool homogeneous = m.type == MediumType::Homogeneous;
     const Vec3 wo = -p.dir;
     const double radius = beam_radii_[size_t(p.medium)];
-    const KernelZones zones = kernel_zones(p.dir, t_end, radius, entry_plane(p), exit);
+    const KernelZones zones = kernel_zones(p.dir, t_end, radius, triangle_plane(*scene_, p.start_triangle, p.dir), exit);
     // t_end and the hits' t_ray count from the segment's origin, the lead behind p.pos.
     const Vec3 origin = segment_origin(p);
     // A pair: the camera point at t, the beam point at s, over the Jacobian of its blur.
@@ -224,13 +218,11 @@ double ProgressivePhotonBeams::pilot_beams(const BeamGatherPath &p, double t_end
 
 // Pilot: the distance within which the k nearest surface photons of x's estimate lie.
 double ProgressivePhotonBeams::pilot_photons(const BeamGatherPath &p, int tri, const Vec3 &x) const {
-    const Triangle &T = scene_->triangles[size_t(tri)];
     const size_t k = pilot_.surface_neighbours();
-    if (k == 0 || dot(-p.dir, T.n) <= 0) return RadiusPilot::kNoRecord;
-    return photon_tree_.kth_nearest_to_point(x, k, pilot_.max_radius(-1), [&](uint32_t i) {
-        const PathVertex &v = photons_[i];
-        return surface_photon_counts(*scene_, T, v) && depth_.allows(v.depth + p.depth - 1);
-    });
+    if (k == 0) return RadiusPilot::kNoRecord;
+    return kth_nearest_surface_photon(*scene_, photon_tree_, photons_, tri, x, -p.dir, k, pilot_.max_radius(-1),
+                                      RadiusPilot::kNoRecord,
+                                      [&](const PathVertex &v) { return depth_.allows(v.depth + p.depth - 1); });
 }
 
 size_t ProgressivePhotonBeams::shade(const Hits &hits) {
@@ -251,7 +243,7 @@ size_t ProgressivePhotonBeams::shade(const Hits &hits) {
         if (p.medium >= 0) {
             MediumStats local;
             const Medium &m = scene.media[p.medium];
-            const BoundaryPlane exit = tri >= 0 ? boundary_plane(scene.triangles[size_t(tri)].n, p.dir) : BoundaryPlane{};
+            const BoundaryPlane exit = triangle_plane(scene, tri, p.dir);
             // The beams of [0, t_end), or (pilot) the distance to the k-th nearest.
             auto gather_or_measure = [&](double t_end, const BoundaryPlane &end_plane) {
                 if (!pilot) {

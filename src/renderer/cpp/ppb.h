@@ -131,7 +131,6 @@ public:
 
 private:
     RGB gather(BeamGatherPath &p, double t_end, const BoundaryPlane &exit, MediumStats &local, uint64_t &pairs) const;
-    BoundaryPlane entry_plane(const BeamGatherPath &p) const;
     double pilot_beams(const BeamGatherPath &p, double t_end, Sampler rng, double &free_path) const;
     double pilot_photons(const BeamGatherPath &p, int tri, const Vec3 &x) const;
     void scatter_on_surface(BeamGatherPath &p, size_t slot, int tri, const Vec3 &x);

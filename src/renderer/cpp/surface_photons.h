@@ -38,4 +38,19 @@ RGB reflected_photon_power(const Scene &scene, const PointTree &tree, const std:
     return sum * scene.materials[T.material].reflectance * kInvPi;
 }
 
+// The pilot's query for the same estimate (pilot.h): the distance within which the k nearest
+// photons reflected_photon_power would sum at x lie (kInf: fewer than k within max_radius), or
+// `none` where it makes no estimate (wo behind the one-sided surface).
+template <typename Counts>
+double kth_nearest_surface_photon(const Scene &scene, const PointTree &tree, const std::vector<PathVertex> &photons,
+                                  int tri, const Vec3 &x, const Vec3 &wo, size_t k, double max_radius,
+                                  double none, Counts &&counts) {
+    const Triangle &T = scene.triangles[size_t(tri)];
+    if (dot(wo, T.n) <= 0) return none;
+    return tree.kth_nearest_to_point(x, k, max_radius, [&](uint32_t i) {
+        const PathVertex &ph = photons[i];
+        return surface_photon_counts(scene, T, ph) && counts(ph);
+    });
+}
+
 }  // namespace pgi
