@@ -131,10 +131,11 @@ class PhotonMapping(NativeMethod):
 
         def derive(index: int, neighbours: int, what: str) -> radii.DerivedRadius:
             distances, extent, free_paths = kernel.pilot_result(index)
+            ids = self.native.medium_ids
             return radii.from_pilot(
                 np.asarray(distances), extent, neighbours, what, self.fallback_radius, fallback,
                 minimum,
-                radii.grid_free_paths(self.scene, self.native.medium_ids, index, free_paths),
+                np.asarray(free_paths) if radii.is_grid(self.scene, ids, index) else None,
             )  # fmt: skip
 
         derived = {}

@@ -97,11 +97,6 @@ def is_grid(scene: Scene, medium_ids: dict[str, int], index: int) -> bool:
     return index in names and scene.media[names[index]].type == "grid"
 
 
-def grid_free_paths(scene: Scene, medium_ids: dict[str, int], index: int, free_paths) -> np.ndarray:
-    """The pilot's free paths of kernel ``index`` if it is a grid medium's, else none."""
-    return np.asarray(free_paths) if is_grid(scene, medium_ids, index) else np.empty(0)
-
-
 def from_pilot(
     distances: np.ndarray,
     extent: float,
@@ -117,7 +112,7 @@ def from_pilot(
     photon or beam of each, inf where fewer than k lie within the cap) and the bounding radius
     ``extent`` of what it could gather; ``fallback_world`` when the pilot saw nothing to go by.
     ``what`` names the queries in the rule, e.g. "camera-path vertices on diffuse surfaces".
-    ``free_paths`` (a grid medium's queries, grid_free_paths): the mean free path where each
+    ``free_paths`` (a grid medium's queries; None elsewhere): the mean free path where each
     one's flight ended; the radius is at most FREE_PATHS times their median. ``scene_cap``: the
     radius is also at most ``fallback_world``, the rule from the scene's radius."""
     if extent <= 0:
