@@ -14,22 +14,20 @@ For pm, sppm and ppb at their defaults, the same seed in both rooms and the same
 iterations: the images' means, quadrants and 4 x 4 blocks (16 x 16 film) agree between the
 rooms (parity.multiscale_agreement; the two runs share their light paths, whose positive
 correlation only makes the check conservative; 5 % less light in the large room fails it),
-and the ball's radius is the same. Each room's bias against pt is printed. Measured (seed 4,
-against pt in the small room): pm -2.1 % and -1.1 %, sppm -3.0 % and -2.0 %, ppb -1.2 % and
--0.3 % in the small and the large room (pt's own images of the two rooms differ by
-+0.6 % +- 0.3 %); with the radii of the old rule, pm -17 % and -96 %, sppm -21 % and -98 %,
-ppb -4 % and -46 %, and the check fails with |z| 15-20.
+and the ball's radius is the same. Measured once against pt (8 x 256 spp in the small room,
+seed 4; not part of the test, which compares the rooms): pm -3.3 % and -2.4 %, sppm -4.0 % and
+-3.1 %, ppb -1.6 % and -0.4 % in the small and the large room (pt's own images of the two rooms
+differ by +0.6 % +- 0.3 %); with the radii of the old rule, pm -17 % and -96 %, sppm -21 % and
+-98 %, ppb -4 % and -46 %, and the check fails with |z| 15-20.
 """
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 import yaml
 
-from parity import Estimate, iteration_images, multiscale_agreement, ours
+from parity import Estimate, iteration_images, multiscale_agreement
 from renderer.methods import get_method
-from renderer.methods.pt import PathTracing
 from renderer.scene import load_scene
 
 RES = 16
@@ -77,25 +75,18 @@ def rooms(tmp_path_factory):
     return {size: room(tmp_path_factory.mktemp(f"room{size}"), size) for size in (9.0, 180.0)}
 
 
-@pytest.fixture(scope="module")
-def reference(rooms):
-    return ours(PathTracing, rooms[9.0], 8, seed=9, spp_per_wave=256)
-
-
 @pytest.mark.parametrize("method", ["pm", "sppm", "ppb"])
-def test_the_bias_in_the_medium_does_not_depend_on_the_room(rooms, reference, method):
+def test_the_bias_in_the_medium_does_not_depend_on_the_room(rooms, method):
     runs, radii = {}, {}
     for size, scene in rooms.items():
         renderer = get_method(method)(scene, seed=4, threads=2, params={"spp_per_iteration": 4})
         runs[size] = Estimate(iteration_images(renderer, ITERATIONS[method]))
         radii[size] = renderer.stats().get("radii")
-    for size, est in runs.items():
-        bias = est.mean.mean() / reference.mean.mean() - 1
-        print(f"{method} in a room of {size:g}: radii {radii[size]}, bias of the mean {bias:+.2%}")
+    for size in runs:
+        print(f"{method} in a room of {size:g}: radii {radii[size]}")
     small, large = runs[9.0], runs[180.0]
     agrees, detail = multiscale_agreement(large, small)
     assert agrees, f"{method}: the rooms differ: {detail}"
     assert radii[9.0]["ball"]["world"] == pytest.approx(radii[180.0]["ball"]["world"], rel=0.05)
     # the check's power: the large room's image 5 % darker fails
     assert not multiscale_agreement(Estimate(large.samples * 0.95), small)[0]
-    assert np.isfinite(large.samples).all()
