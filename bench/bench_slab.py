@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from benchlib import at_least, seconds
+from renderer.cli import split_sets
 from renderer.errors import PgiError
 from renderer.methods import get_method, method_ids
 from renderer.progressive import check_threads, run_for
@@ -29,16 +30,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 from slab import closed_form, slab_scene  # noqa: E402  (the scene and its closed form)
 
 
-def method_params(items: list[str]) -> dict:
-    params = {}
-    for kv in items:
-        key, sep, value = kv.partition("=")
-        if not sep or not key.startswith("method."):
-            raise argparse.ArgumentTypeError(f"expected method.KEY=VALUE, got {kv}")
-        try:
-            params[key.removeprefix("method.")] = float(value) if "." in value else int(value)
-        except ValueError:
-            params[key.removeprefix("method.")] = value
+def method_params(items: list[str], methods: list[str]) -> dict:
+    """The --set items as method parameters (pgi render's parsing), each known to at least one
+    of ``methods`` (every method gets the ones it knows)."""
+    overrides, params = split_sets(items)
+    if overrides:
+        raise PgiError(f"--set {overrides[0]}: expected method.KEY=VALUE (the slab is fixed)")
+    for key in params:
+        if not any(key in get_method(m).parameters for m in methods):
+            raise PgiError(f"--set method.{key}: no method of {', '.join(methods)} takes it")
     return params
 
 
@@ -55,9 +55,9 @@ def main() -> None:
     ours = [m for m in method_ids() if m != "mitsuba"]
     try:
         check_threads(args.threads)
-        params = method_params(args.set)
         if bad := [m for m in args.methods if m not in ours]:
             raise PgiError(f"unknown method(s) {bad}; known: {', '.join(ours)}")
+        params = method_params(args.set, args.methods)
         if not args.width >= 4:
             raise PgiError(f"--width must be at least 4 (the closed form's), got {args.width:g}")
     except (PgiError, argparse.ArgumentTypeError) as e:
