@@ -1292,6 +1292,24 @@ def test_a_pgi_reference_method_is_pt_or_bdpt_and_only_for_pgi(tmp_path):
     assert r.returncode == 2 and "invalid choice: 'sppm'" in r.stderr
 
 
+def test_a_pgi_reference_is_cross_checked_by_bdpt(tmp_path):
+    """`pgi reference --source pgi --check S`: pt's reference is judged against S seconds of
+    pgi's bdpt (its pixels correlated within a pass: the image mean's variance from its passes),
+    and the sidecar says so; the same scene, rendered alike, passes."""
+    out = tmp_path / "ref.exr"
+    r = pgi(
+        "reference", "cbox", "--source", "pgi", "--spp", "16", "--check", "0.5",
+        "--threads", "1", *small(), "-q", "-o", str(out),
+    )  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    info = json.loads(out.with_suffix(".json").read_text())
+    trust = info["trust"]
+    assert trust["checked_against"] == "pgi's bdpt"
+    assert trust["reference"] == "pgi's pt reference of cbox"
+    assert trust["check"]["renderer"].endswith(" bdpt")
+    assert trust["check"]["spp"] > 0 and trust["trustworthy"], trust["line"]
+
+
 def test_reference_store_is_extended_not_rendered_again(tmp_path):
     """`pgi reference --store`: 16 spp in 8 passes, then 40 from the same store renders the
     24 missing ones only (passes with seeds of their own, continuing the first 8) and the
